@@ -1,0 +1,5 @@
+import sys
+
+from lightcuts.cli import main
+
+sys.exit(main())

@@ -1,0 +1,155 @@
+"""The Scene: a triangle soup with one material per triangle, and a pinhole camera.
+
+Structure of arrays, like trimesh's ``Trimesh``: every per-triangle quantity is a flat numpy array
+indexed by triangle id (the ``primID`` Embree returns).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from lightcuts.errors import LightcutsError
+from lightcuts.io import save_npz
+
+
+@dataclass
+class Camera:
+    """Pinhole camera.
+
+    position, look_at, up : (3,) float64, world units
+    fov : vertical field of view, degrees
+    width, height : image resolution, pixels
+    """
+
+    position: np.ndarray
+    look_at: np.ndarray
+    up: np.ndarray
+    fov: float
+    width: int
+    height: int
+
+    def __post_init__(self):
+        self.position = np.asarray(self.position, np.float64).reshape(3)
+        self.look_at = np.asarray(self.look_at, np.float64).reshape(3)
+        self.up = np.asarray(self.up, np.float64).reshape(3)
+        self.fov = float(self.fov)
+        self.width = int(self.width)
+        self.height = int(self.height)
+
+    def frame(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Orthonormal (right, up, forward) of the camera, each (3,)."""
+        fwd = self.look_at - self.position
+        fwd = fwd / np.linalg.norm(fwd)
+        right = np.cross(fwd, self.up)
+        right = right / np.linalg.norm(right)
+        up = np.cross(right, fwd)
+        return right, up, fwd
+
+    def as_array(self) -> np.ndarray:
+        """(12,) float64: position, look_at, up, fov, width, height (for .npz)."""
+        return np.concatenate([self.position, self.look_at, self.up, [self.fov, self.width, self.height]])
+
+    @classmethod
+    def from_array(cls, a: np.ndarray) -> "Camera":
+        a = np.asarray(a, np.float64)
+        return cls(a[0:3], a[3:6], a[6:9], a[9], int(a[10]), int(a[11]))
+
+
+@dataclass
+class Scene:
+    """Triangle meshes with per-triangle material.
+
+    vertices : (V, 3) float64, world units
+    faces : (F, 3) int32, vertex indices, counter-clockwise = front (normal by the right-hand rule)
+    albedo : (F, 3) float64, diffuse reflectance rho_d in [0, 1] (RGB)
+    specular : (F, 3) float64, Phong specular reflectance rho_s (RGB); 0 = purely diffuse
+    exponent : (F,) float64, Phong exponent n (>= 0)
+    emission : (F, 3) float64, emitted radiance, W/(m^2 sr) per RGB channel, one-sided along the
+        triangle's normal; 0 = not an emitter
+    camera : Camera or None
+    name : str
+    """
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    albedo: np.ndarray
+    specular: np.ndarray
+    exponent: np.ndarray
+    emission: np.ndarray
+    camera: Camera | None = None
+    name: str = "scene"
+    _cache: dict = field(default_factory=dict, repr=False, compare=False)
+
+    def __post_init__(self):
+        self.vertices = np.ascontiguousarray(self.vertices, np.float64).reshape(-1, 3)
+        self.faces = np.ascontiguousarray(self.faces, np.int32).reshape(-1, 3)
+        nf = len(self.faces)
+        self.albedo = np.ascontiguousarray(np.broadcast_to(self.albedo, (nf, 3)), np.float64)
+        self.specular = np.ascontiguousarray(np.broadcast_to(self.specular, (nf, 3)), np.float64)
+        self.exponent = np.ascontiguousarray(np.broadcast_to(self.exponent, (nf,)), np.float64)
+        self.emission = np.ascontiguousarray(np.broadcast_to(self.emission, (nf, 3)), np.float64)
+
+    @property
+    def n_faces(self) -> int:
+        return len(self.faces)
+
+    @property
+    def triangles(self) -> np.ndarray:
+        """(F, 3, 3) float64 corner positions."""
+        return self.vertices[self.faces]
+
+    @property
+    def face_normals(self) -> np.ndarray:
+        """(F, 3) float64 unit geometric normals (right-hand rule)."""
+        if "normals" not in self._cache:
+            t = self.triangles
+            n = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+            length = np.linalg.norm(n, axis=1, keepdims=True)
+            self._cache["normals"] = n / np.where(length > 0, length, 1.0)
+        return self._cache["normals"]
+
+    @property
+    def face_areas(self) -> np.ndarray:
+        """(F,) float64 triangle areas, world units squared."""
+        if "areas" not in self._cache:
+            t = self.triangles
+            self._cache["areas"] = 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)
+        return self._cache["areas"]
+
+    @property
+    def bounds(self) -> np.ndarray:
+        """(2, 3) float64 axis-aligned bounding box of the vertices used by faces."""
+        used = self.vertices[np.unique(self.faces)] if len(self.faces) else self.vertices
+        return np.stack([used.min(axis=0), used.max(axis=0)])
+
+    @property
+    def diagonal(self) -> float:
+        """Length of the bounding box diagonal, world units."""
+        lo, hi = self.bounds
+        return float(np.linalg.norm(hi - lo))
+
+    @property
+    def emitters(self) -> np.ndarray:
+        """(E,) int64 ids of triangles with non-zero emission."""
+        return np.flatnonzero(self.emission.max(axis=1) > 0)
+
+    def save(self, path) -> Path:
+        """Write the scene as .npz (keys = the field names; ``camera`` as 12 floats)."""
+        arrays = dict(vertices=self.vertices, faces=self.faces, albedo=self.albedo, specular=self.specular,
+                      exponent=self.exponent, emission=self.emission, name=np.array(self.name))
+        if self.camera is not None:
+            arrays["camera"] = self.camera.as_array()
+        return save_npz(path, **arrays)
+
+    @classmethod
+    def load(cls, path) -> "Scene":
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                cam = Camera.from_array(z["camera"]) if "camera" in z else None
+                return cls(z["vertices"], z["faces"], z["albedo"], z["specular"], z["exponent"],
+                           z["emission"], cam, str(z["name"]))
+        except (OSError, KeyError, ValueError) as exc:
+            raise LightcutsError(f"{path}: not a lightcuts scene file ({exc})") from None
