@@ -1,0 +1,120 @@
+"""Image outputs: linear EXR, sRGB PNG (colour-science), cut-size heatmap with a colour bar.
+
+All writers are atomic (temporary name, then rename). Heavy imports (OpenEXR, colour, matplotlib)
+happen inside the functions so that importing lightcuts stays fast.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from lightcuts.errors import LightcutsError
+from lightcuts.io import atomic_path
+
+
+def write_exr(path, rgb: np.ndarray) -> Path:
+    """Write linear RGB (H, W, 3) as a float32 ZIP-compressed scanline EXR (channels R, G, B)."""
+    import OpenEXR
+
+    rgb = np.ascontiguousarray(rgb, np.float32)  # float64 raises, a non-contiguous view writes garbage
+    if rgb.ndim != 3 or rgb.shape[2] != 3:
+        raise ValueError(f"expected (H, W, 3) RGB, got {rgb.shape}")
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    path = Path(path)
+    with atomic_path(path, suffix=".exr") as tmp:
+        with OpenEXR.File(header, {"RGB": rgb}) as f:
+            f.write(str(tmp))
+    return path
+
+
+def read_exr(path) -> np.ndarray:
+    """Read an RGB EXR as (H, W, 3) float32; LightcutsError naming the file if it is not one."""
+    import OpenEXR
+
+    if not os.path.isfile(path):
+        raise LightcutsError(f"{path}: no such EXR file")
+    try:
+        with OpenEXR.File(str(path)) as f:
+            ch = f.channels()
+            if "RGB" in ch:
+                return np.asarray(ch["RGB"].pixels, np.float32)
+            if all(c in ch for c in "RGB"):
+                return np.stack([np.asarray(ch[c].pixels, np.float32) for c in "RGB"], axis=-1)
+            raise LightcutsError(f"{path}: EXR has no R, G, B channels (has {', '.join(ch)})")
+    except LightcutsError:
+        raise
+    except Exception as exc:
+        raise LightcutsError(f"{path}: cannot read EXR ({exc})") from None
+
+
+def to_srgb8(rgb: np.ndarray, exposure: float = 0.0) -> np.ndarray:
+    """Linear RGB -> 8-bit sRGB (H, W, 3) uint8: scale by 2^exposure, sRGB OETF (colour-science), clip."""
+    import warnings
+
+    os.environ.setdefault("COLOUR_SCIENCE__FILTER_USAGE_WARNINGS", "1")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        import colour
+
+    x = np.clip(np.asarray(rgb, np.float64) * (2.0 ** exposure), 0.0, 1.0)
+    encoded = colour.cctf_encoding(x, function="sRGB")
+    return np.clip(np.round(encoded * 255.0), 0, 255).astype(np.uint8)
+
+
+def write_png(path, rgb: np.ndarray, exposure: float = 0.0) -> Path:
+    """Write linear RGB (H, W, 3) as an 8-bit sRGB PNG, after ``exposure`` stops."""
+    from PIL import Image
+
+    path = Path(path)
+    with atomic_path(path, suffix=".png") as tmp:
+        Image.fromarray(to_srgb8(rgb, exposure)).save(tmp, format="PNG")
+    return path
+
+
+def write_heatmap(path, values: np.ndarray, label: str = "cut size (nodes per eye ray)",
+                  title: str | None = None) -> Path:
+    """False-colour map of a per-pixel scalar (H, W) with a colour bar, as PNG."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    values = np.asarray(values, np.float64)
+    h, w = values.shape
+    fig_w = 6.0
+    fig, ax = plt.subplots(figsize=(fig_w, fig_w * h / w * 0.85 + 0.4), dpi=max(100, int(w / 5)))
+    im = ax.imshow(values, cmap="inferno", interpolation="nearest", vmin=0.0, vmax=max(1.0, float(values.max())))
+    ax.set_axis_off()
+    if title:
+        ax.set_title(title, fontsize=9)
+    cb = fig.colorbar(im, ax=ax, fraction=0.046, pad=0.03)
+    cb.set_label(label)
+    fig.tight_layout()
+    path = Path(path)
+    with atomic_path(path, suffix=".png") as tmp:
+        fig.savefig(tmp, format="png")
+    plt.close(fig)
+    return path
+
+
+def relative_error(image: np.ndarray, reference: np.ndarray, floor: float | None = None) -> dict:
+    """Per-pixel relative error of luminance, |L - L_ref| / L_ref, over pixels with L_ref > floor.
+
+    floor defaults to 1% of the reference's mean luminance (dark pixels make relative error meaningless).
+    Returns mean, median, p99, max and the number of pixels compared.
+    """
+    from lightcuts.lights.lightset import LUMINANCE
+
+    lum = np.asarray(image, np.float64) @ LUMINANCE
+    ref = np.asarray(reference, np.float64) @ LUMINANCE
+    if floor is None:
+        floor = 0.01 * float(ref.mean())
+    mask = ref > floor
+    if not mask.any():
+        return {"pixels": 0, "floor": floor, "mean": 0.0, "median": 0.0, "p99": 0.0, "max": 0.0}
+    rel = np.abs(lum[mask] - ref[mask]) / ref[mask]
+    return {"pixels": int(mask.sum()), "floor": float(floor), "mean": float(rel.mean()),
+            "median": float(np.median(rel)), "p99": float(np.percentile(rel, 99)), "max": float(rel.max())}

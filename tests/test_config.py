@@ -1,0 +1,70 @@
+"""Config validation: every shipped config loads; each kind of bad config fails with one line."""
+
+from pathlib import Path
+
+import pytest
+
+from lightcuts.config import load_config
+from lightcuts.errors import LightcutsError
+
+CONFIGS = sorted((Path(__file__).parent.parent / "configs").glob("*.yaml"))
+
+
+@pytest.mark.parametrize("path", CONFIGS, ids=lambda p: p.name)
+def test_shipped_configs_validate(path):
+    cfg = load_config(path)
+    assert cfg.name == path.stem
+
+
+def write(tmp_path, text, name="run.yaml"):
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+@pytest.mark.parametrize("text, expected", [
+    ("scene: {builtin: cornell}\nrender: {epss: 0.1}\n", "render.epss: unknown key"),
+    ("scene: {builtin: cornell}\nrender: {eps: fast}\n", "render.eps:"),
+    ("scene: {builtin: cornell}\nrender: {eps: -1}\n", "render.eps:"),
+    ("scene: {builtin: cornell}\nlights: {direct: {count: 1.5}}\n", "lights.direct.count:"),
+    ("scene: {builtin: sphere}\n", "scene.builtin:"),
+    ("scene: {meshes: [{file: nothere.obj}]}\n", "scene.meshes.0.file: no such file"),
+    ("scene: {builtin: cornell}\nlights: {environment: {file: sky.exr}}\n", "lights.environment.file: no such file"),
+    ("scene: {builtin: cornell}\nlights: {environment: {count: 4}}\n", "lights.environment: give exactly one"),
+    ("render: {eps: 0.1}\n", "scene: Field required"),
+    ("scene: {}\n", "scene: needs builtin or meshes"),
+    ("scene: [1, 2\n", "invalid YAML"),
+    ("- 1\n- 2\n", "expected a mapping"),
+    ("scene: {builtin: cornell}\ncamera: {resolution: [0, 10]}\n", "camera.resolution.0:"),
+])
+def test_bad_configs_name_the_key(tmp_path, text, expected):
+    p = write(tmp_path, text)
+    with pytest.raises(LightcutsError) as e:
+        load_config(p)
+    msg = str(e.value)
+    assert "\n" not in msg
+    assert msg.startswith(str(p)), msg
+    assert expected in msg, msg
+
+
+def test_missing_config_file(tmp_path):
+    with pytest.raises(LightcutsError, match="cannot read config"):
+        load_config(tmp_path / "none.yaml")
+
+
+def test_overrides_apply_and_validate(tmp_path):
+    p = write(tmp_path, "scene: {builtin: cornell}\n")
+    cfg = load_config(p, ["render.eps=0.005", "lights.indirect.count=2000", "tree.builder=divisive-6d"])
+    assert cfg.render.eps == 0.005 and cfg.lights.indirect.count == 2000 and cfg.tree.builder == "divisive-6d"
+    with pytest.raises(LightcutsError, match="render.nope: unknown key"):
+        load_config(p, ["render.nope=1"])
+    with pytest.raises(LightcutsError, match="expected key=value"):
+        load_config(p, ["render.eps"])
+
+
+def test_paths_resolve_against_config_folder(tmp_path):
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "m.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    p = write(tmp_path / "sub", "scene: {meshes: [{file: m.obj}]}\n")
+    cfg = load_config(p)
+    assert cfg.resolve(cfg.scene.meshes[0].file) == (tmp_path / "sub" / "m.obj").resolve()
