@@ -42,6 +42,21 @@ def cmd_lights(args) -> int:
 def cmd_tree(args) -> int:
     from lightcuts.lights import LightSet
     from lightcuts.trees.build import build_tree
+    from lightcuts.trees.registry import get_builder, get_metric
+
+    cfg = None
+    if not args.lights:
+        if not args.config:
+            raise LightcutsError("tree: give a CONFIG or --lights FILE")
+        from lightcuts.config import load_config
+
+        cfg = load_config(args.config, args.overrides)
+    builder = args.builder or (cfg.tree.builder if cfg else "agglomerative")
+    metric = args.metric or (cfg.tree.metric if cfg else "walter2008")
+    c = args.c if args.c is not None else (cfg.tree.c if cfg else None)
+    seed = args.seed if args.seed is not None else (cfg.seed if cfg else 0)
+    get_builder(builder)  # unknown names fail here, before any work
+    get_metric(metric)
 
     if args.lights:
         sets = {}
@@ -50,25 +65,14 @@ def cmd_tree(args) -> int:
             sets[ls.type] = ls
         name = Path(args.lights[0]).stem
     else:
-        if not args.config:
-            raise LightcutsError("tree: give a CONFIG or --lights FILE")
-        from lightcuts.config import load_config
         from lightcuts.pipeline import make_lights, make_scene
 
-        cfg = load_config(args.config, args.overrides)
         sets = make_lights(cfg, make_scene(cfg))
         name = cfg.name
-        args.builder = args.builder or cfg.tree.builder
-        args.metric = args.metric or cfg.tree.metric
-        args.c = args.c if args.c is not None else cfg.tree.c
-        args.seed = args.seed if args.seed is not None else cfg.seed
-    builder = args.builder or "agglomerative"
-    metric = args.metric or "walter2008"
-    seed = args.seed if args.seed is not None else 0
     out = Path(args.out)
     for typ, ls in sets.items():
         t0 = time.perf_counter()
-        tree = build_tree(ls, builder=builder, metric=metric, c=args.c, seed=seed)
+        tree = build_tree(ls, builder=builder, metric=metric, c=c, seed=seed)
         dt = time.perf_counter() - t0
         path = out if len(sets) == 1 else out.with_name(f"{out.stem}-{typ}{out.suffix or '.npz'}")
         tree.save(path)

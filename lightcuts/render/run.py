@@ -30,12 +30,13 @@ def run_render(args) -> dict:
     from lightcuts import __version__
     from lightcuts.io import save_json
     from lightcuts.lights.generate import load_environment
-    from lightcuts.pipeline import make_caster, make_lights, make_scene
+    from lightcuts.pipeline import check_names, make_caster, make_lights, make_scene
     from lightcuts.render.integrator import render_image, render_reference
     from lightcuts.report.images import relative_error, write_exr, write_heatmap, write_png
     from lightcuts.trees.build import build_tree
 
     cfg = load_config(args.config, args.overrides)  # every config error surfaces here, before any work
+    check_names(cfg)
     out_dir = Path(args.out) if args.out else Path("renders") / cfg.name
 
     t0 = time.perf_counter()
