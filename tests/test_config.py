@@ -36,6 +36,9 @@ def write(tmp_path, text, name="run.yaml"):
     ("scene: [1, 2\n", "invalid YAML"),
     ("- 1\n- 2\n", "expected a mapping"),
     ("scene: {builtin: cornell}\ncamera: {resolution: [0, 10]}\n", "camera.resolution.0:"),
+    ("scene: {builtin: cornell}\nrender: {eps: .nan}\n", "render.eps:"),
+    ("scene: {builtin: cornell}\nlights: {sun: {direction: [0, .inf, 0], irradiance: [1, 1, 1]}}\n",
+     "lights.sun.direction.1:"),
 ])
 def test_bad_configs_name_the_key(tmp_path, text, expected):
     p = write(tmp_path, text)
