@@ -1,0 +1,95 @@
+"""The lights a run config asks for: direct + indirect oriented lights, sun + environment directional lights.
+
+Each source draws its randomness from its own sub-seed of ``cfg.seed`` (numpy ``SeedSequence`` with
+a fixed spawn key per source), so adding or removing one source leaves the others' lights unchanged.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from lightcuts.errors import LightcutsError
+from lightcuts.lights.direct import direct_lights
+from lightcuts.lights.environment import EnvironmentMap, environment_lights, procedural_sky, sun_light
+from lightcuts.lights.indirect import indirect_lights
+from lightcuts.lights.lightset import LightSet
+
+# Spawn keys of the sources' sub-seeds: never renumber (it would change every saved run's lights).
+_SOURCE_KEYS = {"direct": 1, "indirect": 2, "environment": 3}
+
+
+def sub_seed(seed: int, source: str) -> int:
+    """A 63-bit seed for ``source`` ("direct", "indirect", "environment") derived from the run's seed."""
+    state = np.random.SeedSequence(int(seed), spawn_key=(_SOURCE_KEYS[source],)).generate_state(2, np.uint32)
+    return (int(state[0]) << 31) ^ int(state[1])
+
+
+def load_environment(cfg) -> EnvironmentMap | None:
+    """The config's environment map (file or procedural sky, ``rotate`` and ``scale`` applied), or None."""
+    env = cfg.lights.environment
+    if env is None:
+        return None
+    if env.file is not None:
+        return EnvironmentMap.load(cfg.resolve(env.file), env.rotate, env.scale)
+    p = env.procedural
+    return procedural_sky(p.sun_direction, p.resolution, p.zenith, p.horizon, p.ground, rotate=env.rotate,
+                          scale=env.scale)
+
+
+def lights_from_config(cfg, scene, caster=None) -> dict[str, LightSet]:
+    """Light sets keyed by type (``oriented``, ``directional``), empty types omitted.
+
+    cfg : RunConfig; scene : Scene; caster : RayCaster for particle tracing (built from
+    ``cfg.render.ray_caster`` if None and indirect lights are asked for).
+
+    ``oriented`` = direct lights then indirect VPLs; ``directional`` = the sun then the environment
+    samples. Each set's ``meta``: scene name, scene bbox min/max and diagonal, the run seed, and
+    ``count_direct``, ``count_indirect``, ``count_sun``, ``count_environment`` (0 when absent) plus
+    ``indirect_paths`` (the particle paths that normalise the VPLs).
+
+    LightcutsError: direct/indirect count > 0 in a scene without emitters, a zero sun direction,
+    an unreadable environment map, or no lights at all.
+    """
+    lc = cfg.lights
+    have_emitters = len(scene.emitters) > 0 and float((scene.emission.max(axis=1) * scene.face_areas).max()) > 0
+    for key, n in (("direct", lc.direct.count), ("indirect", lc.indirect.count)):
+        if n > 0 and not have_emitters:
+            raise LightcutsError(f"lights.{key}: the scene has no emissive triangles "
+                                 f"(set lights.{key}.count: 0)")
+    oriented, directional = [], []
+    counts = {"count_direct": 0, "count_indirect": 0, "count_sun": 0, "count_environment": 0, "indirect_paths": 0}
+    if lc.direct.count > 0:
+        d = direct_lights(scene, lc.direct.count, sub_seed(cfg.seed, "direct"))
+        oriented.append(d)
+        counts["count_direct"] = len(d)
+    if lc.indirect.count > 0:
+        if caster is None:
+            from lightcuts.accel import make_caster
+
+            caster = make_caster(scene, cfg.render.ray_caster)
+        ind = indirect_lights(scene, caster, lc.indirect.count, sub_seed(cfg.seed, "indirect"),
+                              lc.indirect.max_bounces, lc.indirect.rr_start)
+        oriented.append(ind)
+        counts["count_indirect"] = len(ind)
+        counts["indirect_paths"] = int(ind.meta.get("indirect_paths", 0))
+    if lc.sun is not None:
+        directional.append(sun_light(lc.sun.direction, lc.sun.irradiance))
+        counts["count_sun"] = 1
+    env = load_environment(cfg)
+    if env is not None:
+        e = environment_lights(env, lc.environment.count, sub_seed(cfg.seed, "environment"))
+        directional.append(e)
+        counts["count_environment"] = len(e)
+    lo, hi = scene.bounds
+    meta = {"scene": scene.name, "bbox_min": lo, "bbox_max": hi, "diagonal": scene.diagonal, "seed": cfg.seed,
+            **counts}
+    out = {}
+    for typ, sets in (("oriented", oriented), ("directional", directional)):
+        sets = [s for s in sets if len(s)]
+        if sets:
+            ls = LightSet.concatenate(sets)
+            ls.meta = dict(meta)
+            out[typ] = ls
+    if not out:
+        raise LightcutsError("lights: the config yields no lights (all counts 0, no sun, or a black environment)")
+    return out
