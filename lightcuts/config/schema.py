@@ -98,6 +98,9 @@ class Procedural(Strict):
     zenith: Vec3 = [0.25, 0.45, 1.0]
     horizon: Vec3 = [0.9, 0.95, 1.0]
     ground: Vec3 = [0.15, 0.13, 0.11]
+    # A sun disc inside the map (W/m^2 at normal incidence; 0 = none, e.g. when lights.sun is set).
+    sun_irradiance: Annotated[float, Field(ge=0)] = 15.0
+    sun_radius: Annotated[float, Field(gt=0, le=45)] = 2.0  # degrees
 
 
 class Environment(Strict):

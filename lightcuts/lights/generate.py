@@ -32,7 +32,8 @@ def load_environment(cfg) -> EnvironmentMap | None:
     if env.file is not None:
         return EnvironmentMap.load(cfg.resolve(env.file), env.rotate, env.scale)
     p = env.procedural
-    return procedural_sky(p.sun_direction, p.resolution, p.zenith, p.horizon, p.ground, rotate=env.rotate,
+    return procedural_sky(p.sun_direction, p.resolution, p.zenith, p.horizon, p.ground,
+                          sun_irradiance=p.sun_irradiance, sun_radius=p.sun_radius, rotate=env.rotate,
                           scale=env.scale)
 
 
