@@ -1,31 +1,97 @@
-"""The ray-caster interface and registry."""
+"""The ray-caster interface and registry, and the input checks every caster shares."""
 
 from __future__ import annotations
 
 import numpy as np
 
+from lightcuts.errors import LightcutsError
 from lightcuts.registry import Registry
 
 RAY_CASTERS: Registry = Registry("ray caster", group="lightcuts.ray_casters")
+
+# Embree works in float32: a coordinate beyond this would become inf inside the BVH traversal.
+_F32_MAX = float(np.finfo(np.float32).max)
 
 
 class RayCaster:
     """Closest hit and occlusion over a triangle mesh.
 
     All arrays: org, dirs (n, 3) float64 (dirs need not be unit: t is in units of |dir|);
-    tnear, tfar (n,) float64 (tfar may be inf).
+    tnear, tfar (n,) float64 or scalars (tnear >= 0; tfar may be inf; tfar < tnear is an empty
+    segment). A hit counts when tnear <= t <= tfar, up to float32 rounding (Embree's test).
+    Implementations pass their inputs through :func:`check_rays` first.
     """
 
     #: (intersect1, occluded1, scene_handle) for per-ray calls from numba kernels, or None.
     kernel_handles = None
 
     def intersect(self, org, dirs, tnear, tfar) -> tuple[np.ndarray, np.ndarray]:
-        """Closest hit with t in (tnear, tfar]: (t (n,) float64, inf on a miss; prim (n,) int32, -1 on a miss)."""
+        """Closest hit with t in [tnear, tfar]: (t (n,) float64, inf on a miss; prim (n,) int32, -1 on a miss)."""
         raise NotImplementedError
 
     def occluded(self, org, dirs, tnear, tfar) -> np.ndarray:
         """(n,) bool: True where some triangle is hit with t in [tnear, tfar]."""
         raise NotImplementedError
+
+
+def _finite_f32(name: str, a: np.ndarray) -> None:
+    # max() propagates NaN, so one pass catches NaN, inf and float32 overflow.
+    if a.size and not float(np.abs(a).max()) <= _F32_MAX:
+        raise LightcutsError(f"ray caster: {name} has NaN, inf or values beyond float32 range")
+
+
+def check_rays(org, dirs, tnear, tfar) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Validated rays as C-contiguous float64 arrays: org, dirs (n, 3), tnear, tfar (n,).
+
+    Scalars ``tnear`` / ``tfar`` are broadcast. Raises LightcutsError (never reaches a kernel) on a
+    shape mismatch, a non-numeric array, NaN or inf in org/dirs, NaN in tnear/tfar, tnear < 0 or
+    tnear = inf.
+    """
+    arrays = []
+    for name, a in (("org", org), ("dirs", dirs), ("tnear", tnear), ("tfar", tfar)):
+        try:
+            arrays.append(np.asarray(a, np.float64))
+        except (TypeError, ValueError) as exc:
+            raise LightcutsError(f"ray caster: {name} is not numeric ({exc})") from None
+    org, dirs, tnear, tfar = arrays
+    if org.ndim != 2 or org.shape[1] != 3:
+        raise LightcutsError(f"ray caster: org has shape {org.shape}; expected (n, 3)")
+    if dirs.shape != org.shape:
+        raise LightcutsError(f"ray caster: dirs has shape {dirs.shape}; expected {org.shape} like org")
+    n = org.shape[0]
+    for name, a in (("tnear", tnear), ("tfar", tfar)):
+        if a.ndim > 1 or (a.ndim == 1 and a.shape[0] != n):
+            raise LightcutsError(f"ray caster: {name} has shape {a.shape}; expected ({n},) or a scalar")
+    _finite_f32("org", org)
+    _finite_f32("dirs", dirs)
+    if np.isnan(tnear).any() or np.isnan(tfar).any():
+        raise LightcutsError("ray caster: tnear/tfar contain NaN")
+    if (tnear < 0).any() or np.isinf(tnear).any():
+        raise LightcutsError("ray caster: tnear must be finite and >= 0")
+    return (np.ascontiguousarray(org), np.ascontiguousarray(dirs),
+            np.ascontiguousarray(np.broadcast_to(tnear, (n,))),
+            np.ascontiguousarray(np.broadcast_to(tfar, (n,))))
+
+
+def check_mesh(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
+    """Validated triangle mesh: vertices (V, 3) float32, faces (F, 3) uint32, both C-contiguous.
+
+    Raises LightcutsError on a wrong shape, non-finite or float32-overflowing vertices, non-integer
+    faces or a vertex index outside [0, V).
+    """
+    vertices = np.asarray(vertices)
+    faces = np.asarray(faces)
+    if vertices.ndim != 2 or vertices.shape[1] != 3 or not np.issubdtype(vertices.dtype, np.number):
+        raise LightcutsError(f"ray caster: vertices must be a numeric (V, 3) array, got {vertices.dtype} "
+                             f"{vertices.shape}")
+    if faces.ndim != 2 or faces.shape[1] != 3 or not np.issubdtype(faces.dtype, np.integer):
+        raise LightcutsError(f"ray caster: faces must be an integer (F, 3) array, got {faces.dtype} {faces.shape}")
+    vertices = vertices.astype(np.float64, copy=False)
+    if vertices.size and not float(np.abs(vertices).max()) <= _F32_MAX:
+        raise LightcutsError("ray caster: vertices have NaN, inf or values beyond float32 range")
+    if faces.size and (faces.min() < 0 or faces.max() >= len(vertices)):
+        raise LightcutsError(f"ray caster: faces index vertices outside [0, {len(vertices)})")
+    return np.ascontiguousarray(vertices, np.float32), np.ascontiguousarray(faces, np.uint32)
 
 
 def make_caster(scene, name: str = "embree") -> RayCaster:
