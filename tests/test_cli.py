@@ -1,0 +1,60 @@
+"""The command line as a user meets it: one-line errors, exit status 2, nothing written."""
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).parent.parent
+
+
+def run_cli(*args, cwd):
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    return subprocess.run([sys.executable, "-m", "lightcuts", *args], cwd=cwd, env=env,
+                          capture_output=True, text=True, timeout=300)
+
+
+BAD = [
+    ("scene: {builtin: cornell}\nrender: {epss: 0.1}\n", "render.epss: unknown key"),
+    ("scene: {builtin: cornell}\nrender: {spp: many}\n", "render.spp:"),
+    ("scene: {meshes: [{file: missing.obj}]}\n", "scene.meshes.0.file: no such file"),
+    ("scene: {builtin: cornell}\ntree: {builder: nope}\n", "unknown builder 'nope'"),
+    ("scene: {builtin: cornell}\ntree: {metric: nope}\n", "unknown metric 'nope'"),
+]
+
+
+@pytest.mark.parametrize("command", ["render", "lights", "tree"])
+@pytest.mark.parametrize("text, expected", BAD[:3])
+def test_bad_config_one_line_nothing_written(tmp_path, command, text, expected):
+    (tmp_path / "run.yaml").write_text(text)
+    r = run_cli(command, "run.yaml", cwd=tmp_path)
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: run.yaml: "), r.stderr
+    assert expected in lines[0]
+    assert "Traceback" not in r.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.yaml"]
+
+
+@pytest.mark.parametrize("text, expected", BAD[3:])
+def test_unknown_names_fail_before_rendering(tmp_path, text, expected):
+    (tmp_path / "run.yaml").write_text(text + "lights: {direct: {count: 16}}\ncamera: {resolution: [8, 8]}\n")
+    r = run_cli("render", "run.yaml", "--no-progress", cwd=tmp_path)
+    assert r.returncode == 2, r.stderr
+    assert expected in r.stderr and "Traceback" not in r.stderr
+    assert not (tmp_path / "renders").exists()
+
+
+def test_set_override_error_names_the_key(tmp_path):
+    (tmp_path / "run.yaml").write_text("scene: {builtin: cornell}\n")
+    r = run_cli("render", "run.yaml", "--set", "render.eps=-3", cwd=tmp_path)
+    assert r.returncode == 2 and "render.eps" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_help_lists_commands(tmp_path):
+    r = run_cli("--help", cwd=tmp_path)
+    assert r.returncode == 0
+    for c in ("lights", "tree", "scaling", "render"):
+        assert c in r.stdout
