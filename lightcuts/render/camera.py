@@ -1,0 +1,132 @@
+r"""Eye rays of the pinhole camera: stratified jittered samples, counter-based random numbers.
+
+Pixel ``(px, py)`` (row ``py = 0`` at the top of the image) and sample ``s`` of ``spp`` get the film
+position ``(px + u, py + v)`` with ``(u, v)`` jittered inside stratum ``s`` of an ``sx x sy`` grid over
+the pixel (``sx * sy = spp``, the factorisation closest to square; a prime spp gives a 1-row grid).
+The jitter comes from a counter-based hash of ``(seed, pixel index in the full image, s, dimension)``,
+so each pixel's rays depend on nothing else: not on the thread count, the band or the crop window
+(a crop renders exactly the full image's pixels).
+
+Camera model (lightcuts.scene.Camera): vertical field of view ``fov``; the ray through film position
+``(fx, fy)`` has direction ``forward + a * right + b * up`` with
+``a = (2 fx / W - 1) tan(fov / 2) W / H`` and ``b = (1 - 2 fy / H) tan(fov / 2)``, normalised.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from lightcuts.errors import LightcutsError
+
+#: Layout of the (16,) float64 camera parameter array used by kernels.
+CAM_POSITION, CAM_RIGHT, CAM_UP, CAM_FORWARD = 0, 3, 6, 9
+CAM_SCALE_X, CAM_SCALE_Y, CAM_WIDTH, CAM_HEIGHT = 12, 13, 14, 15
+
+_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+_M1 = np.uint64(0xBF58476D1CE4E5B9)
+_M2 = np.uint64(0x94D049BB133111EB)
+_S30, _S27, _S31, _S11 = np.uint64(30), np.uint64(27), np.uint64(31), np.uint64(11)
+
+
+@njit(cache=True, error_model="numpy")
+def mix64(z):
+    """splitmix64's finaliser: a bijective hash of a uint64."""
+    z = (z ^ (z >> _S30)) * _M1
+    z = (z ^ (z >> _S27)) * _M2
+    return z ^ (z >> _S31)
+
+
+@njit(cache=True, error_model="numpy")
+def hash_uniform(seed, pixel, sample, dim):
+    """A uniform float64 in [0, 1) determined only by the four non-negative integer counters."""
+    h = mix64(np.uint64(seed) + _GOLDEN)
+    h = mix64(h ^ np.uint64(pixel))
+    h = mix64(h ^ (np.uint64(sample) * np.uint64(4) + np.uint64(dim)))
+    return np.float64(h >> _S11) * (1.0 / 9007199254740992.0)
+
+
+def strata(spp: int) -> tuple[int, int]:
+    """(sx, sy): the grid of strata per pixel, sx * sy = spp, sx >= sy, as square as possible."""
+    sy = max(d for d in range(1, math.isqrt(spp) + 1) if spp % d == 0)
+    return spp // sy, sy
+
+
+@njit(cache=True, error_model="numpy")
+def eye_ray(cam, seed, px, py, s, sx, sy):
+    """Direction (unit, world) of sample s of pixel (px, py); the origin is the camera position.
+
+    cam : (16,) float64 from :func:`camera_params`; sx, sy : the strata grid (:func:`strata`).
+    """
+    width = cam[CAM_WIDTH]
+    pixel = np.int64(py) * np.int64(width) + np.int64(px)
+    u = (s % sx + hash_uniform(seed, pixel, s, 0)) / sx
+    v = (s // sx + hash_uniform(seed, pixel, s, 1)) / sy
+    a = (2.0 * (px + u) / width - 1.0) * cam[CAM_SCALE_X]
+    b = (1.0 - 2.0 * (py + v) / cam[CAM_HEIGHT]) * cam[CAM_SCALE_Y]
+    d0 = cam[CAM_FORWARD] + a * cam[CAM_RIGHT] + b * cam[CAM_UP]
+    d1 = cam[CAM_FORWARD + 1] + a * cam[CAM_RIGHT + 1] + b * cam[CAM_UP + 1]
+    d2 = cam[CAM_FORWARD + 2] + a * cam[CAM_RIGHT + 2] + b * cam[CAM_UP + 2]
+    norm = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+    return d0 / norm, d1 / norm, d2 / norm
+
+
+def camera_params(camera) -> np.ndarray:
+    """(16,) float64 kernel parameters of a lightcuts.scene.Camera (layout: the ``CAM_*`` offsets).
+
+    LightcutsError if the camera cannot form an image (fov, resolution, degenerate frame).
+    """
+    if camera is None:
+        raise LightcutsError("camera: the scene has no camera and none was given")
+    if not 0.0 < camera.fov < 180.0:
+        raise LightcutsError(f"camera.fov: {camera.fov} is not in (0, 180) degrees")
+    if camera.width < 1 or camera.height < 1:
+        raise LightcutsError(f"camera.resolution: {camera.width} x {camera.height} is not a positive size")
+    vecs = np.stack([camera.position, camera.look_at, camera.up])
+    if not np.all(np.isfinite(vecs)):
+        raise LightcutsError("camera: position, look_at and up must be finite")
+    with np.errstate(invalid="ignore", divide="ignore"):
+        right, up, fwd = camera.frame()
+    if not (np.all(np.isfinite(right)) and np.all(np.isfinite(fwd))):
+        raise LightcutsError("camera: look_at equals position, or up is parallel to the view direction")
+    tan_half = math.tan(math.radians(camera.fov) / 2.0)
+    return np.concatenate([camera.position, right, up, fwd,
+                           [tan_half * camera.width / camera.height, tan_half, camera.width, camera.height]])
+
+
+@njit(cache=True, error_model="numpy")
+def _eye_rays(cam, seed, x0, y0, x1, y1, spp, sx, sy, dirs):
+    k = 0
+    for py in range(y0, y1):
+        for px in range(x0, x1):
+            for s in range(spp):
+                dirs[k, 0], dirs[k, 1], dirs[k, 2] = eye_ray(cam, seed, px, py, s, sx, sy)
+                k += 1
+
+
+def eye_rays(camera, spp: int = 1, seed: int = 0, crop=None) -> tuple[np.ndarray, np.ndarray]:
+    """All eye rays of an image (or of ``crop = (x0, y0, x1, y1)``), as the renderer casts them.
+
+    Returns origins and unit directions, each (H, W, spp, 3) float64 (H, W of the crop window),
+    in row-major pixel order with row 0 at the top.
+    """
+    cam = camera_params(camera)
+    x0, y0, x1, y1 = check_crop(crop, camera)
+    sx, sy = strata(spp)
+    dirs = np.empty(((y1 - y0) * (x1 - x0) * spp, 3))
+    _eye_rays(cam, seed, x0, y0, x1, y1, spp, sx, sy, dirs)
+    dirs = dirs.reshape(y1 - y0, x1 - x0, spp, 3)
+    return np.broadcast_to(camera.position, dirs.shape).copy(), dirs
+
+
+def check_crop(crop, camera) -> tuple[int, int, int, int]:
+    """The window ``(x0, y0, x1, y1)`` (half-open, pixels) checked against the image; None = all."""
+    if crop is None:
+        return 0, 0, camera.width, camera.height
+    x0, y0, x1, y1 = (int(v) for v in crop)
+    if not (0 <= x0 < x1 <= camera.width and 0 <= y0 < y1 <= camera.height):
+        raise LightcutsError(f"render.crop: {list(crop)} is not a non-empty window [x0, y0, x1, y1) inside "
+                             f"the {camera.width} x {camera.height} image")
+    return x0, y0, x1, y1

@@ -1,0 +1,207 @@
+"""Property tests of the lightcut error bounds (lightcuts.render.bounds) against exact shading.
+
+For random receivers, materials and clusters of lights of all three types, the bound I_C M_ub G_ub
+must be >= the contribution M G I of every light the box (and cone) holds, channel by channel; the
+cone bound >= the true cosine; and the clamped bound >= the clamped contribution.
+"""
+
+import math
+
+import numpy as np
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from lightcuts.render.bounds import (DIRECTIONAL, OMNI, ORIENTED, box_distance2, cluster_error_bound,
+                                     cone_cos_bound, max_cos_in_box)
+from lightcuts.render.shading import facing_normal, reflect, unshadowed_contribution
+
+SETTINGS = settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+
+coord = st.floats(-5.0, 5.0, allow_nan=False, allow_infinity=False)
+seeds = st.integers(0, 2**32 - 1)
+
+
+def normalized(v):
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def unit(rng, n=None):
+    """A random unit vector (3,), or n of them (n, 3)."""
+    return normalized(rng.normal(size=(3,) if n is None else (n, 3)))
+
+
+def random_receiver(rng):
+    """Point x, unit normal N facing wo, wo, R = reflect(wo, N)."""
+    x = rng.uniform(-4, 4, 3)
+    wo = unit(rng)
+    n = np.array(facing_normal(*unit(rng), *wo))
+    r = np.array(reflect(*wo, *n))
+    return x, n, r
+
+
+def random_material(rng):
+    albedo = rng.uniform(0, 1, 3) * (rng.random() < 0.9)
+    glossy = rng.random() < 0.6
+    specular = rng.uniform(0, 1, 3) if glossy else np.zeros(3)
+    exponent = float(rng.choice([0.0, 1.0, 5.0, 20.0, 80.0, 200.0, rng.uniform(0, 200)])) if glossy else 0.0
+    return albedo, specular, exponent
+
+
+def cone_around(rng, axis, cos_half, n):
+    """n unit normals in the cone (axis, cos_half): uniform over the cap, about a third on its edge."""
+    t1 = np.cross(axis, [1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 else [0.0, 1.0, 0.0])
+    t1 /= np.linalg.norm(t1)
+    t2 = np.cross(axis, t1)
+    cos_t = np.where(rng.random(n) < 0.3, cos_half, rng.uniform(cos_half, 1.0, n))
+    sin_t = np.sqrt(np.maximum(0.0, 1.0 - cos_t ** 2))
+    phi = rng.uniform(0, 2 * np.pi, n)
+    v = cos_t[:, None] * axis + sin_t[:, None] * (np.cos(phi)[:, None] * t1 + np.sin(phi)[:, None] * t2)
+    return v / np.linalg.norm(v, axis=1, keepdims=True)
+
+
+def random_cluster(rng, light_type, x):
+    """A box, a cone, and lights inside both (corners of the box included)."""
+    n = int(rng.integers(1, 12))
+    if light_type == DIRECTIONAL:
+        centre = unit(rng)
+        spread = rng.uniform(0, 1.5)
+        dirs = normalized(centre + spread * rng.normal(size=(n, 3)))
+        lo, hi = dirs.min(axis=0), dirs.max(axis=0)
+        return lo, hi, np.zeros(3), -1.0, dirs, np.zeros((n, 3))
+    centre = rng.uniform(-4, 4, 3)
+    if rng.random() < 0.2:  # a box near the receiver: small distances stress the 1/d^2 bound
+        centre = x + unit(rng) * rng.uniform(0.05, 1.0)
+    half = rng.uniform(0, 1.5, 3) * (rng.random(3) < 0.9)
+    lo, hi = centre - half, centre + half
+    pos = rng.uniform(lo, hi, (n, 3))
+    corners = np.array([[(lo, hi)[(k >> d) & 1][d] for d in range(3)] for k in range(8)])
+    pos = np.concatenate([pos, corners[rng.integers(0, 8, 3)]])
+    if light_type == OMNI:
+        return lo, hi, np.zeros(3), -1.0, pos, np.zeros_like(pos)
+    if rng.random() < 0.15:
+        return lo, hi, np.zeros(3), -1.0, pos, unit(rng, len(pos))  # full sphere
+    axis = unit(rng)
+    cos_half = float(rng.choice([1.0, rng.uniform(0.5, 1.0), rng.uniform(-1.0, 1.0)]))
+    return lo, hi, axis, cos_half, pos, cone_around(rng, axis, cos_half, len(pos))
+
+
+def check_cluster(seed, light_type, clamp_d2):
+    rng = np.random.default_rng(seed)
+    x, n, r = random_receiver(rng)
+    albedo, specular, exponent = random_material(rng)
+    lo, hi, axis, cos_half, pos, nrm = random_cluster(rng, light_type, x)
+    intensity = rng.uniform(0, 10, (len(pos), 3))
+    total = intensity.sum(axis=0)
+    bound = np.array(cluster_error_bound(*x, *n, *r, *albedo, *specular, exponent, light_type, *lo, *hi, *axis,
+                                         cos_half, *total, clamp_d2))
+    for j in range(len(pos)):
+        c = np.array(unshadowed_contribution(light_type, *pos[j], *nrm[j], *total, *x, *n, *r, *albedo, *specular,
+                                             exponent, clamp_d2))
+        assert np.all(c <= bound), (j, c, bound)
+
+
+@SETTINGS
+@given(seeds)
+def test_bound_holds_for_omni_clusters(seed):
+    check_cluster(seed, OMNI, 0.0)
+
+
+@SETTINGS
+@given(seeds)
+def test_bound_holds_for_oriented_clusters(seed):
+    check_cluster(seed, ORIENTED, 0.0)
+
+
+@SETTINGS
+@given(seeds)
+def test_bound_holds_for_directional_clusters(seed):
+    check_cluster(seed, DIRECTIONAL, 0.0)
+
+
+@SETTINGS
+@given(seeds, st.sampled_from([OMNI, ORIENTED]), st.floats(1e-4, 4.0))
+def test_clamped_bound_holds_for_clamped_contributions(seed, light_type, min_distance):
+    check_cluster(seed, light_type, min_distance ** 2)
+
+
+@SETTINGS
+@given(seeds)
+def test_bound_is_tight_for_a_single_light(seed):
+    """A box around one light (lo == hi) bounds that light with no slack beyond rounding."""
+    rng = np.random.default_rng(seed)
+    x, n, r = random_receiver(rng)
+    albedo, specular, exponent = random_material(rng)
+    y = x + unit(rng) * rng.uniform(0.5, 3.0)
+    nl = unit(rng)
+    i = rng.uniform(0.1, 10, 3)
+    c = np.array(unshadowed_contribution(ORIENTED, *y, *nl, *i, *x, *n, *r, *albedo, *specular, exponent, 0.0))
+    b = np.array(cluster_error_bound(*x, *n, *r, *albedo, *specular, exponent, ORIENTED, *y, *y, *nl, 1.0, *i, 0.0))
+    np.testing.assert_allclose(b, c, rtol=1e-6, atol=1e-12)
+
+
+@SETTINGS
+@given(seeds)
+def test_cone_bound_holds_for_every_direction_from_the_box(seed):
+    rng = np.random.default_rng(seed)
+    x = rng.uniform(-4, 4, 3)
+    lo, hi, axis, cos_half, pos, nrm = random_cluster(rng, ORIENTED, x)
+    b = cone_cos_bound(*x, *lo, *hi, *axis, cos_half)
+    for y, nl in zip(pos, nrm):
+        v = x - y
+        d = np.linalg.norm(v)
+        if d > 0:
+            assert max(0.0, nl @ v / d) <= b * (1 + 1e-12), (b, nl @ v / d)
+
+
+@SETTINGS
+@given(seeds)
+def test_max_cos_in_box_bounds_every_vector_and_is_exact_for_a_point(seed):
+    rng = np.random.default_rng(seed)
+    z = unit(rng)
+    lo = rng.uniform(-3, 3, 3)
+    hi = lo + rng.uniform(0, 2, 3) * (rng.random(3) < 0.8)
+    b = max_cos_in_box(*z, *lo, *hi)
+    assert -1.0 <= b <= 1.0
+    for v in np.concatenate([rng.uniform(lo, hi, (50, 3)), [lo, hi]]):
+        if np.linalg.norm(v) > 0:
+            assert z @ v / np.linalg.norm(v) <= b + 1e-12
+    p = lo
+    assert math.isclose(max_cos_in_box(*z, *p, *p), z @ p / np.linalg.norm(p), abs_tol=1e-12)
+
+
+def bound(x, n, albedo, specular, exponent, light_type, lo, hi, intensity, axis=(0.0, 0.0, 0.0), cone_cos=-1.0):
+    return cluster_error_bound(*x, *n, *n, *albedo, *specular, exponent, light_type, *lo, *hi, *axis, cone_cos,
+                               *intensity, 0.0)
+
+
+def test_receiver_inside_a_box_gives_an_infinite_bound():
+    lo, hi = np.array([-1.0, -1, -1]), np.array([1.0, 1, 1])
+    x, n = np.zeros(3), np.array([0.0, 0, 1])
+    b = bound(x, n, np.ones(3), np.zeros(3), 0.0, OMNI, lo, hi, np.ones(3))
+    assert all(math.isinf(v) for v in b)
+    assert box_distance2(*x, *lo, *hi) == 0.0
+    assert box_distance2(3.0, 0.0, -2.0, *lo, *hi) == 5.0
+    # A black channel (no intensity) stays 0, not NaN.
+    b = bound(x, n, np.ones(3), np.zeros(3), 0.0, OMNI, lo, hi, np.array([1.0, 0.0, 1.0]))
+    assert b[1] == 0.0 and math.isinf(b[0])
+
+
+def test_cluster_behind_the_surface_has_zero_bound():
+    x, n = np.zeros(3), np.array([0.0, 0, 1])
+    b = bound(x, n, np.ones(3), np.ones(3), 10.0, OMNI, np.array([-1.0, -1, -3]), np.array([1.0, 1, -0.5]),
+              np.ones(3))
+    assert b == (0.0, 0.0, 0.0)
+    # Directional: every direction of the box points below the horizon.
+    b = bound(x, n, np.ones(3), np.zeros(3), 0.0, DIRECTIONAL, np.array([0.0, 0, -1]), np.array([0.5, 0.5, -0.7]),
+              np.ones(3))
+    assert b == (0.0, 0.0, 0.0)
+
+
+def test_oriented_lights_facing_away_have_zero_bound():
+    """A cone of normals pointing away from the receiver (more than 90 degrees from x - y) gives 0."""
+    x = np.zeros(3)
+    lo, hi = np.array([-1.0, -1, 2]), np.array([1.0, 1, 3])  # above x
+    axis = np.array([0.0, 0, 1])                                # lights face up, away from x
+    assert cone_cos_bound(*x, *lo, *hi, *axis, math.cos(math.radians(20))) == 0.0
+    assert cone_cos_bound(*x, *lo, *hi, *-axis, math.cos(math.radians(20))) == 1.0
+    assert cone_cos_bound(*x, *lo, *hi, *axis, -1.0) == 1.0
