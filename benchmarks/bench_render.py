@@ -21,7 +21,9 @@ The machine has 2 cores shared with other work: wall times are noisy, so the pro
 threads) is recorded too; CPU seconds / threads estimates the wall time on idle cores. The load
 average at the start is printed and saved. Results go to benchmarks/results/render.csv.
 
-    python benchmarks/bench_render.py [--size 512] [--direct 1024] [--indirect 100000] [--repeats 3]
+    python benchmarks/bench_render.py [--size 512] [--direct 1024] [--indirect 100000] [--repeats 3] [--quick]
+
+``--quick`` times only the full image and prints it (no CSV).
 """
 
 from __future__ import annotations
@@ -74,6 +76,7 @@ def main() -> None:
     ap.add_argument("--crop", type=int, default=64, help="side of the centre crop rendered with the reference")
     ap.add_argument("--eps", type=float, default=0.02)
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results" / "render.csv"))
+    ap.add_argument("--quick", action="store_true", help="only the full image (no split, crop or other builders)")
     args = ap.parse_args()
 
     load = os.getloadavg()[0]
@@ -117,6 +120,12 @@ def main() -> None:
 
     full_t = timed(render, args.repeats)
     row("full", full_t, args.repeats)
+    if args.quick:
+        r = rows[-1]
+        print(f"full {res}: {r['seconds']:.2f} s wall median of {args.repeats}, {r['cpu_seconds']:.2f} s CPU, "
+              f"cut {r['cut_size_mean']:.1f}, {r['shadow_rays_per_pixel']:.1f} shadow rays/pixel (not saved)")
+        caster.close()
+        return
     novis_t = timed(lambda: render(visibility=False), args.repeats)
     row("no-visibility", novis_t, args.repeats, "shadow rays skipped (V = 1)")
     eye_t = timed(lambda: render_image(scene, caster, {}, {}, camera=camera), args.repeats)

@@ -109,12 +109,19 @@ def max_cos_in_box(z0, z1, z2, lo0, lo1, lo2, hi0, hi1, hi2):
 
     <= 0 means every v is at least 90 degrees from z (see the module docstring for the method).
     """
+    t1, t2 = orthonormal_frame(z0, z1, z2)
+    return max_cos_in_frame(z0, z1, z2, t1[0], t1[1], t1[2], t2[0], t2[1], t2[2], lo0, lo1, lo2, hi0, hi1, hi2)
+
+
+@njit(cache=True, error_model="numpy")
+def max_cos_in_frame(z0, z1, z2, u0, u1, u2, v0, v1, v2, lo0, lo1, lo2, hi0, hi1, hi2):
+    """:func:`max_cos_in_box` with the frame (u, v, z) of :func:`orthonormal_frame` given: a receiver
+    computes the frames of its normal and mirror direction once for all the clusters it bounds."""
     _, mz_hi = _extent(z0, z1, z2, lo0, lo1, lo2, hi0, hi1, hi2)
     if mz_hi == 0.0:
         return 0.0
-    t1, t2 = orthonormal_frame(z0, z1, z2)
-    mx_lo, mx_hi = _extent(t1[0], t1[1], t1[2], lo0, lo1, lo2, hi0, hi1, hi2)
-    my_lo, my_hi = _extent(t2[0], t2[1], t2[2], lo0, lo1, lo2, hi0, hi1, hi2)
+    mx_lo, mx_hi = _extent(u0, u1, u2, lo0, lo1, lo2, hi0, hi1, hi2)
+    my_lo, my_hi = _extent(v0, v1, v2, lo0, lo1, lo2, hi0, hi1, hi2)
     if mz_hi > 0.0:
         tx2 = 0.0 if mx_lo <= 0.0 <= mx_hi else min(mx_lo * mx_lo, mx_hi * mx_hi)
         ty2 = 0.0 if my_lo <= 0.0 <= my_hi else min(my_lo * my_lo, my_hi * my_hi)
@@ -150,16 +157,35 @@ def material_bound(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, 
     lo, hi : the cluster box (positions, or directions when ``directional``).
     Returns (M_r, M_g, M_b), zeros when the whole box is behind the surface.
     """
+    fn = receiver_frames(n0, n1, n2, r0, r1, r2)
+    return material_bound_framed(x0, x1, x2, n0, n1, n2, r0, r1, r2, fn, rd0, rd1, rd2, rs0, rs1, rs2, exponent,
+                                 lo0, lo1, lo2, hi0, hi1, hi2, directional)
+
+
+@njit(cache=True, error_model="numpy")
+def receiver_frames(n0, n1, n2, r0, r1, r2):
+    """The tangents of :func:`orthonormal_frame` about N and about R, as one 12-tuple
+    ``(tn1, tn2, tr1, tr2)``: computed once per receiver, used by every cluster bound there."""
+    a, b = orthonormal_frame(n0, n1, n2)
+    c, d = orthonormal_frame(r0, r1, r2)
+    return a[0], a[1], a[2], b[0], b[1], b[2], c[0], c[1], c[2], d[0], d[1], d[2]
+
+
+@njit(cache=True, error_model="numpy")
+def material_bound_framed(x0, x1, x2, n0, n1, n2, r0, r1, r2, fr, rd0, rd1, rd2, rs0, rs1, rs2, exponent,
+                          lo0, lo1, lo2, hi0, hi1, hi2, directional):
+    """:func:`material_bound` with the receiver's frames ``fr`` (:func:`receiver_frames`) given."""
     if not directional:
         lo0, lo1, lo2 = lo0 - x0, lo1 - x1, lo2 - x2
         hi0, hi1, hi2 = hi0 - x0, hi1 - x1, hi2 - x2
     # Every wi below the horizon (the common case for clusters behind the surface): no frame needed.
     if _extent(n0, n1, n2, lo0, lo1, lo2, hi0, hi1, hi2)[1] <= 0.0:
         return 0.0, 0.0, 0.0
-    cos_n = max_cos_in_box(n0, n1, n2, lo0, lo1, lo2, hi0, hi1, hi2)
+    cos_n = max_cos_in_frame(n0, n1, n2, fr[0], fr[1], fr[2], fr[3], fr[4], fr[5], lo0, lo1, lo2, hi0, hi1, hi2)
     lobe = 0.0
     if rs0 > 0.0 or rs1 > 0.0 or rs2 > 0.0:
-        cos_r = max(0.0, max_cos_in_box(r0, r1, r2, lo0, lo1, lo2, hi0, hi1, hi2))
+        cos_r = max(0.0, max_cos_in_frame(r0, r1, r2, fr[6], fr[7], fr[8], fr[9], fr[10], fr[11],
+                                          lo0, lo1, lo2, hi0, hi1, hi2))
         lobe = (exponent + 2.0) / (2.0 * np.pi) * cos_r ** exponent
     return ((rd0 / np.pi + rs0 * lobe) * cos_n, (rd1 / np.pi + rs1 * lobe) * cos_n,
             (rd2 / np.pi + rs2 * lobe) * cos_n)
@@ -191,8 +217,19 @@ def cluster_error_bound(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, 
     :func:`geometric_bound`. Inf where the receiver is inside a positional cluster's box and the
     material bound is non-zero.
     """
-    m0, m1, m2 = material_bound(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, exponent,
-                                lo0, lo1, lo2, hi0, hi1, hi2, light_type == DIRECTIONAL)
+    fr = receiver_frames(n0, n1, n2, r0, r1, r2)
+    return cluster_error_bound_framed(x0, x1, x2, n0, n1, n2, r0, r1, r2, fr, rd0, rd1, rd2, rs0, rs1, rs2,
+                                      exponent, light_type, lo0, lo1, lo2, hi0, hi1, hi2, a0, a1, a2, cone_cos,
+                                      i0, i1, i2, clamp_d2)
+
+
+@njit(cache=True, error_model="numpy")
+def cluster_error_bound_framed(x0, x1, x2, n0, n1, n2, r0, r1, r2, fr, rd0, rd1, rd2, rs0, rs1, rs2, exponent,
+                               light_type, lo0, lo1, lo2, hi0, hi1, hi2, a0, a1, a2, cone_cos, i0, i1, i2, clamp_d2):
+    """:func:`cluster_error_bound` with the receiver's frames ``fr`` (:func:`receiver_frames`) given:
+    the same arithmetic, so the same bits. The lightcut calls this once per cluster it considers."""
+    m0, m1, m2 = material_bound_framed(x0, x1, x2, n0, n1, n2, r0, r1, r2, fr, rd0, rd1, rd2, rs0, rs1, rs2,
+                                       exponent, lo0, lo1, lo2, hi0, hi1, hi2, light_type == DIRECTIONAL)
     if m0 <= 0.0 and m1 <= 0.0 and m2 <= 0.0:
         return 0.0, 0.0, 0.0
     g = geometric_bound(x0, x1, x2, light_type, lo0, lo1, lo2, hi0, hi1, hi2, a0, a1, a2, cone_cos,

@@ -15,12 +15,22 @@ A child whose representative is its parent's reuses the parent's ``M G V`` (no n
 only the other child's representative needs a shadow ray. Nodes with a zero bound (a leaf, or a
 cluster entirely behind the surface) never enter the heap.
 
-Memory layout: a node is read as a whole (box, cone, intensity, children), so nodes are packed rows
-(two arrays, 160 bytes a node) rather than one array per field, and numbered level by level with
-siblings side by side (both children are always read together; the top levels, which every
-receiver reads, share cache lines). With 10^5 lights this more than halved the render time here.
+Memory layout: a node is read as a whole (box, cone, intensity, children), so the kernel reads one
+packed float32 record of 64 bytes (one cache line, :func:`pack_nodes`) rather than one array per
+field, and nodes are numbered level by level with siblings side by side (both children are always
+read together; the top levels, which every receiver reads, share cache lines). The float64 rows
+(node_f, node_k) stay in the forest as the exact description of the trees.
 
-Scratch (one set per thread, reused across receivers), ``cap = max(max_cut, n_roots) + 1``:
+Time per refined node (measured, Cornell box, 10^5 lights): the heap and the loop around it about
+half, the two children's bounds most of the rest, Embree's own share small. Hence: the refined
+node's first child with a bound replaces it at the top of the heap (one sift instead of a pop and
+a push), the receiver's frames about N and R are computed once (lightcuts.render.bounds.
+receiver_frames), and the loop reads node records and light rows itself. Evaluating bounds lazily (children
+keyed by the parent's bound until they reach the top) computed fewer bounds but was about 17% slower:
+the extra heap work costs more than the bounds it saves.
+
+Scratch (one set per thread, reused across receivers), ``cap = max(max_cut, n_roots) + 2``
+(the heap keeps a -inf sentinel after its last entry):
 ``heap_key (cap,) float64``, ``heap_slot (cap,) int64``, ``slot_node (cap,) int64``,
 ``slot_mgv (cap, 3) float64`` (the representative's ``M G V`` per RGB channel) and
 ``slot_ratio (cap,) float64`` (unclamped over clamped G of the representative, 1 if not clamped).
@@ -36,7 +46,7 @@ from numba import njit
 from lightcuts.accel.embree_kernels import ray_occluded
 from lightcuts.errors import LightcutsError
 from lightcuts.lights.lightset import LIGHT_TYPES, LUMINANCE, LightSet
-from lightcuts.render.bounds import DIRECTIONAL, OMNI, ORIENTED, cluster_error_bound
+from lightcuts.render.bounds import DIRECTIONAL, OMNI, ORIENTED, cluster_error_bound_framed, receiver_frames
 from lightcuts.render.shading import light_geometry, material_term
 from lightcuts.trees.tree import LightTree
 
@@ -48,6 +58,13 @@ NF_LO, NF_HI, NF_AXIS, NF_COS, NF_I, NF_TYPE, NF_WIDTH = 0, 3, 6, 9, 10, 13, 16
 # Columns of a node's integer row (node_k, (K, 4) int64): children (-1 at a leaf), representative
 # (global light id), 1 if every light below is an indirect VPL (the clamped bound applies).
 NK_LEFT, NK_RIGHT, NK_REP, NK_ALL_INDIRECT, NK_WIDTH = 0, 1, 2, 3, 4
+# Columns of a node's kernel record (node_b, (K, 16) float32, one 64-byte cache line; node_bi is the
+# same memory viewed as int32 for the integer columns): box lo (rounded down), hi (rounded up); cone
+# axis, cos (widened); summed RGB intensity; left child (-1 at a leaf; the right child is left + 1),
+# representative (global light id), flags = 2 * type code + all-indirect.
+NB_LO, NB_HI, NB_AXIS, NB_COS, NB_I, NB_LEFT, NB_REP, NB_FLAGS, NB_WIDTH = 0, 3, 6, 9, 10, 13, 14, 15, 16
+#: Extra half-angle (radians) given to a node's cone in node_b: covers the float32 rounding of its axis.
+CONE_WIDEN = 1e-6
 # Columns of a light's row (light_f, (L, 8) float64): position (directional: unit direction towards
 # the light), normal, type code, 1.0 for an indirect VPL.
 LF_POS, LF_NRM, LF_TYPE, LF_INDIRECT, LF_WIDTH = 0, 3, 6, 7, 8
@@ -63,6 +80,8 @@ class Forest:
     node_k : (K, 4) int64 node rows (``NK_*``): left, right, representative, all-indirect flag
     roots : (T,) int64, one per tree (none without trees: the reference)
     n_lights : {type: count}
+    node_b : (K, 16) float32, what the kernel reads of node_f and node_k (``NB_*``), one cache line
+        a node; node_bi : the same memory viewed as (K, 16) int32 (:func:`pack_nodes`)
     """
 
     light_f: np.ndarray
@@ -71,6 +90,43 @@ class Forest:
     node_k: np.ndarray
     roots: np.ndarray
     n_lights: dict
+    node_b: np.ndarray
+    node_bi: np.ndarray
+
+
+def _round32(a: np.ndarray, down: bool) -> np.ndarray:
+    """float64 -> float32 rounded towards -inf (``down``) or +inf, so a box only grows."""
+    r = a.astype(np.float32)
+    wrong = r.astype(np.float64) > a if down else r.astype(np.float64) < a
+    r[wrong] = np.nextafter(r[wrong], np.float32(-np.inf if down else np.inf))
+    return r
+
+
+def pack_nodes(node_f: np.ndarray, node_k: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The kernel's node records ``(node_b, node_bi)`` (``NB_*`` columns) from the float64 rows.
+
+    A cut reads nodes in an order no layout can predict, and with 10^5 lights the tree is larger
+    than the L2 cache: one 64-byte line a node (float32) instead of the rows' 160 bytes in two
+    arrays. The bounds stay bounds: boxes are rounded outwards and
+    cones widened by CONE_WIDEN (float32 rounding moves an axis by about 1e-7 rad). The summed
+    intensity is rounded to the nearest float32 (relative 6e-8), in the estimate and bound alike.
+    """
+    k = node_f.shape[0]
+    if k >= 2 ** 31 - 1:
+        raise LightcutsError(f"trees: {k} nodes exceed the kernel's int32 node ids")
+    node_b = np.zeros((k, NB_WIDTH), np.float32)
+    node_bi = node_b.view(np.int32)
+    node_b[:, NB_LO:NB_LO + 3] = _round32(node_f[:, NF_LO:NF_LO + 3], down=True)
+    node_b[:, NB_HI:NB_HI + 3] = _round32(node_f[:, NF_HI:NF_HI + 3], down=False)
+    node_b[:, NB_AXIS:NB_AXIS + 3] = node_f[:, NF_AXIS:NF_AXIS + 3]
+    beta = np.arccos(np.clip(node_f[:, NF_COS], -1.0, 1.0)) + CONE_WIDEN
+    full = (node_f[:, NF_COS] <= -1.0) | (beta >= np.pi)
+    node_b[:, NB_COS] = np.where(full, np.float32(-1.0), _round32(np.cos(np.minimum(beta, np.pi)), down=True))
+    node_b[:, NB_I:NB_I + 3] = node_f[:, NF_I:NF_I + 3]
+    node_bi[:, NB_LEFT] = node_k[:, NK_LEFT]
+    node_bi[:, NB_REP] = node_k[:, NK_REP]
+    node_bi[:, NB_FLAGS] = 2 * node_f[:, NF_TYPE].astype(np.int32) + (node_k[:, NK_ALL_INDIRECT] > 0)
+    return node_b, node_bi
 
 
 def _level_order(tree: LightTree) -> list[np.ndarray]:
@@ -179,16 +235,46 @@ def build_forest(lights: dict, trees: dict | None) -> Forest:
             roots.append(node_base)  # the root is first in level order
             light_base += len(ls)
             node_base += len(order)
-    return Forest(light_f=light_f, light_i=light_i,
-                  node_f=np.ascontiguousarray(np.concatenate(node_f)) if node_f else np.zeros((0, NF_WIDTH)),
-                  node_k=np.ascontiguousarray(np.concatenate(node_k)) if node_k else np.zeros((0, NK_WIDTH), np.int64),
-                  roots=np.array(roots, np.int64), n_lights=n_lights)
+    node_f = np.ascontiguousarray(np.concatenate(node_f)) if node_f else np.zeros((0, NF_WIDTH))
+    node_k = np.ascontiguousarray(np.concatenate(node_k)) if node_k else np.zeros((0, NK_WIDTH), np.int64)
+    node_b, node_bi = pack_nodes(node_f, node_k)
+    return Forest(light_f=light_f, light_i=light_i, node_f=node_f, node_k=node_k, roots=np.array(roots, np.int64),
+                  n_lights=n_lights, node_b=node_b, node_bi=node_bi)
 
 
 @njit(cache=True, error_model="numpy")
 def luminance(r, g, b):
     """Rec. 709 luminance of an RGB triple (inf stays inf)."""
     return LUM_R * r + LUM_G * g + LUM_B * b
+
+
+@njit(cache=True, error_model="numpy")
+def _light_mg(typ, p0, p1, p2, nl0, nl1, nl2, c2, x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2,
+              rs0, rs1, rs2, exponent, ray_offset):
+    """``M G`` of one light (its row's values as scalars) and the shadow ray that decides its V.
+
+    Arguments as :func:`light_mgv`, with the light's type, position p, normal nl and its clamp c2.
+    Returns ``(mg_r, mg_g, mg_b, ratio, lit, o0, o1, o2, d0, d1, d2, tfar)``: lit = M G > 0 in some
+    channel (else the rest is meaningless); the shadow ray from o along the unit d up to tfar (no
+    ray when tfar <= 0). Scalars only: a function taking arrays that LLVM does not inline costs a
+    reference-count update per array and call.
+    """
+    w0, w1, w2, _, g, g_unclamped = light_geometry(typ, p0, p1, p2, nl0, nl1, nl2, x0, x1, x2, c2)
+    if g <= 0.0:
+        return 0.0, 0.0, 0.0, 1.0, False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    m0, m1, m2 = material_term(n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, exponent, w0, w1, w2)
+    if m0 <= 0.0 and m1 <= 0.0 and m2 <= 0.0:
+        return 0.0, 0.0, 0.0, 1.0, False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    # The light is on the normal's side (M > 0), so the origin moves off the surface towards it.
+    o0, o1, o2 = x0 + ray_offset * n0, x1 + ray_offset * n1, x2 + ray_offset * n2
+    if typ == DIRECTIONAL:
+        d0, d1, d2, tfar = w0, w1, w2, np.inf
+    else:
+        # Lights sit on surfaces: stop short of the light so its own surface does not shadow it.
+        d0, d1, d2 = p0 - o0, p1 - o1, p2 - o2
+        dist = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        d0, d1, d2, tfar = d0 / dist, d1 / dist, d2 / dist, dist - ray_offset
+    return m0 * g, m1 * g, m2 * g, g_unclamped / g, True, o0, o1, o2, d0, d1, d2, tfar
 
 
 @njit(cache=True, error_model="numpy")
@@ -202,50 +288,48 @@ def light_mgv(j, light_f, x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0
     the gap left before the light, world units; visibility : False skips the shadow ray (V = 1:
     unshadowed shading, and timing without rays); occluded1, scene, buf : Embree handles and scratch.
     Returns ``(mgv_r, mgv_g, mgv_b, ratio, rays)``: ratio = unclamped / clamped G (>= 1),
-    rays = shadow rays cast (0 or 1).
+    rays = shadow rays counted (0 or 1; 1 also for a light closer than ray_offset, not cast).
     """
-    typ = np.int64(light_f[j, LF_TYPE])
     c2 = clamp_d2 if light_f[j, LF_INDIRECT] > 0.0 else 0.0
-    p0, p1, p2 = light_f[j, LF_POS], light_f[j, LF_POS + 1], light_f[j, LF_POS + 2]
-    w0, w1, w2, _, g, g_unclamped = light_geometry(typ, p0, p1, p2, light_f[j, LF_NRM], light_f[j, LF_NRM + 1],
-                                                   light_f[j, LF_NRM + 2], x0, x1, x2, c2)
-    if g <= 0.0:
-        return 0.0, 0.0, 0.0, 1.0, 0
-    m0, m1, m2 = material_term(n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, exponent, w0, w1, w2)
-    if m0 <= 0.0 and m1 <= 0.0 and m2 <= 0.0:
+    m0, m1, m2, ratio, lit, o0, o1, o2, d0, d1, d2, tfar = _light_mg(
+        np.int64(light_f[j, LF_TYPE]), light_f[j, LF_POS], light_f[j, LF_POS + 1], light_f[j, LF_POS + 2],
+        light_f[j, LF_NRM], light_f[j, LF_NRM + 1], light_f[j, LF_NRM + 2], c2, x0, x1, x2, n0, n1, n2,
+        r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, exponent, ray_offset)
+    if not lit:
         return 0.0, 0.0, 0.0, 1.0, 0
     if not visibility:
-        return m0 * g, m1 * g, m2 * g, g_unclamped / g, 0
-    # The light is on the normal's side (M > 0), so the origin moves off the surface towards it.
-    o0, o1, o2 = x0 + ray_offset * n0, x1 + ray_offset * n1, x2 + ray_offset * n2
-    if typ == DIRECTIONAL:
-        blocked = ray_occluded(occluded1, scene, buf, o0, o1, o2, w0, w1, w2, 0.0, np.inf)
-    else:
-        # Lights sit on surfaces: stop short of the light so its own surface does not shadow it.
-        d0, d1, d2 = p0 - o0, p1 - o1, p2 - o2
-        dist = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-        tfar = dist - ray_offset
-        blocked = tfar > 0.0 and ray_occluded(occluded1, scene, buf, o0, o1, o2, d0 / dist, d1 / dist,
-                                               d2 / dist, 0.0, tfar)
-    if blocked:
+        return m0, m1, m2, ratio, 0
+    if tfar > 0.0 and ray_occluded(occluded1, scene, buf, o0, o1, o2, d0, d1, d2, 0.0, tfar):
         return 0.0, 0.0, 0.0, 1.0, 1
-    return m0 * g, m1 * g, m2 * g, g_unclamped / g, 1
+    return m0, m1, m2, ratio, 1
 
 
 @njit(cache=True, error_model="numpy")
-def node_bound(k, node_f, node_k, x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, exponent,
-               clamp_d2):
-    """Error bound of node k in luminance; 0 for a leaf (its estimate is exact)."""
-    if node_k[k, NK_LEFT] < 0:
-        return 0.0
-    c2 = clamp_d2 if node_k[k, NK_ALL_INDIRECT] > 0 else 0.0
-    f = node_f
-    b0, b1, b2 = cluster_error_bound(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, exponent,
-                                     np.int64(f[k, NF_TYPE]), f[k, NF_LO], f[k, NF_LO + 1], f[k, NF_LO + 2],
-                                     f[k, NF_HI], f[k, NF_HI + 1], f[k, NF_HI + 2],
-                                     f[k, NF_AXIS], f[k, NF_AXIS + 1], f[k, NF_AXIS + 2], f[k, NF_COS],
-                                     f[k, NF_I], f[k, NF_I + 1], f[k, NF_I + 2], c2)
+def _record_bound(x0, x1, x2, n0, n1, n2, r0, r1, r2, fr, rd0, rd1, rd2, rs0, rs1, rs2, exponent, clamp_d2, flags,
+                  lo0, lo1, lo2, hi0, hi1, hi2, a0, a1, a2, cone_cos, i0, i1, i2):
+    """Error bound in luminance of an inner node from its record's values (``NB_*``, as float64)."""
+    c2 = clamp_d2 if flags & 1 else 0.0
+    b0, b1, b2 = cluster_error_bound_framed(x0, x1, x2, n0, n1, n2, r0, r1, r2, fr, rd0, rd1, rd2, rs0, rs1, rs2,
+                                            exponent, np.int64(flags >> 1), lo0, lo1, lo2, hi0, hi1, hi2,
+                                            a0, a1, a2, cone_cos, i0, i1, i2, c2)
     return luminance(b0, b1, b2)
+
+
+@njit(cache=True, error_model="numpy")
+def node_bound(k, node_b, node_bi, x0, x1, x2, n0, n1, n2, r0, r1, r2, fr, rd0, rd1, rd2, rs0, rs1, rs2, exponent,
+               clamp_d2):
+    """Error bound of node k in luminance; 0 for a leaf (its estimate is exact). fr : the receiver's
+    frames (lightcuts.render.bounds.receiver_frames)."""
+    if node_bi[k, NB_LEFT] < 0:
+        return 0.0
+    f = node_b
+    # Explicit float64: float32 arguments would compile a second specialisation of the bound.
+    return _record_bound(x0, x1, x2, n0, n1, n2, r0, r1, r2, fr, rd0, rd1, rd2, rs0, rs1, rs2, exponent, clamp_d2,
+                         node_bi[k, NB_FLAGS], np.float64(f[k, NB_LO]), np.float64(f[k, NB_LO + 1]),
+                         np.float64(f[k, NB_LO + 2]), np.float64(f[k, NB_HI]), np.float64(f[k, NB_HI + 1]),
+                         np.float64(f[k, NB_HI + 2]), np.float64(f[k, NB_AXIS]), np.float64(f[k, NB_AXIS + 1]),
+                         np.float64(f[k, NB_AXIS + 2]), np.float64(f[k, NB_COS]), np.float64(f[k, NB_I]),
+                         np.float64(f[k, NB_I + 1]), np.float64(f[k, NB_I + 2]))
 
 
 @njit(cache=True, error_model="numpy")
@@ -265,42 +349,41 @@ def _heap_push(heap_key, heap_slot, size, key, slot):
 
 
 @njit(cache=True, error_model="numpy")
-def _heap_pop(heap_key, heap_slot, size):
-    """Remove the top of the max-heap; returns (slot, new size)."""
-    top = heap_slot[0]
-    size -= 1
-    key = heap_key[size]
-    slot = heap_slot[size]
+def _sift_down(heap_key, heap_slot, size, key, slot):
+    """Put (key, slot) at the top of the max-heap of ``size`` entries (replacing the top) and sift it
+    down; returns size. heap_key[size] must be -inf (the sentinel: no test for a missing right child)."""
     i = 0
     while True:
         child = 2 * i + 1
         if child >= size:
             break
-        if child + 1 < size and heap_key[child + 1] > heap_key[child]:
-            child += 1
+        child += heap_key[child + 1] > heap_key[child]
         if heap_key[child] <= key:
             break
         heap_key[i] = heap_key[child]
         heap_slot[i] = heap_slot[child]
         i = child
-    if size > 0:
-        heap_key[i] = key
-        heap_slot[i] = slot
-    return top, size
+    heap_key[i] = key
+    heap_slot[i] = slot
+    return size
 
 
 @njit(cache=True, error_model="numpy")
 def lightcut(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, exponent,
-             node_f, node_k, roots, light_f, eps, max_cut, clamp_d2, ray_offset, visibility, occluded1, scene, buf,
+             node_b, node_bi, roots, light_f, eps, max_cut, clamp_d2, ray_offset, visibility, occluded1, scene, buf,
              heap_key, heap_slot, slot_node, slot_mgv, slot_ratio):
     """Radiance reflected at x towards the viewer, by a lightcut through every tree of the forest.
 
-    x, n, r, rd, rs, exponent : receiver as in :func:`light_mgv`; node_f, node_k, roots, light_f :
+    x, n, r, rd, rs, exponent : receiver as in :func:`light_mgv`; node_b, node_bi, roots, light_f :
     the forest; eps : relative error threshold; max_cut : cut size limit; the remaining arguments:
     see :func:`light_mgv` and the module docstring (scratch).
     Returns ``(L_r, L_g, L_b, cut_size, shadow_rays, clamp_lost)``: clamp_lost = the cut's estimate
     of the luminance that clamping removed here.
+
+    The refinement loop reads the node record and the light row itself and calls functions of
+    scalars for the rest (and the two heap helpers).
     """
+    fr = receiver_frames(n0, n1, n2, r0, r1, r2)
     n_slots = 0
     size = 0
     rays = 0
@@ -309,56 +392,91 @@ def lightcut(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, e
     t2 = 0.0
     for t in range(roots.shape[0]):
         k = roots[t]
-        m0, m1, m2, ratio, nr = light_mgv(node_k[k, NK_REP], light_f, x0, x1, x2, n0, n1, n2, r0, r1, r2,
-                                          rd0, rd1, rd2, rs0, rs1, rs2, exponent, clamp_d2, ray_offset, visibility,
-                                          occluded1, scene, buf)
+        m0, m1, m2, ratio, nr = light_mgv(np.int64(node_bi[k, NB_REP]), light_f, x0, x1, x2, n0, n1, n2,
+                                          r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, exponent, clamp_d2, ray_offset,
+                                          visibility, occluded1, scene, buf)
         rays += nr
         slot_node[n_slots] = k
         slot_mgv[n_slots, 0] = m0
         slot_mgv[n_slots, 1] = m1
         slot_mgv[n_slots, 2] = m2
         slot_ratio[n_slots] = ratio
-        t0 += m0 * node_f[k, NF_I]
-        t1 += m1 * node_f[k, NF_I + 1]
-        t2 += m2 * node_f[k, NF_I + 2]
-        b = node_bound(k, node_f, node_k, x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2,
+        t0 += m0 * node_b[k, NB_I]
+        t1 += m1 * node_b[k, NB_I + 1]
+        t2 += m2 * node_b[k, NB_I + 2]
+        b = node_bound(k, node_b, node_bi, x0, x1, x2, n0, n1, n2, r0, r1, r2, fr, rd0, rd1, rd2, rs0, rs1, rs2,
                        exponent, clamp_d2)
         if b > 0.0:
             size = _heap_push(heap_key, heap_slot, size, b, n_slots)
         n_slots += 1
+    heap_key[size] = -np.inf
 
     while size > 0 and n_slots < max_cut:
         if heap_key[0] <= eps * luminance(t0, t1, t2):
             break
-        s, size = _heap_pop(heap_key, heap_slot, size)
+        # The top s leaves the heap; its first child with a bound takes its place (one sift down
+        # instead of a pop and a push: the heap is most of the time per node).
+        s = heap_slot[0]
+        top_free = True
         k = slot_node[s]
         pm0, pm1, pm2, pratio = slot_mgv[s, 0], slot_mgv[s, 1], slot_mgv[s, 2], slot_ratio[s]
-        t0 -= pm0 * node_f[k, NF_I]
-        t1 -= pm1 * node_f[k, NF_I + 1]
-        t2 -= pm2 * node_f[k, NF_I + 2]
+        t0 -= pm0 * node_b[k, NB_I]
+        t1 -= pm1 * node_b[k, NB_I + 1]
+        t2 -= pm2 * node_b[k, NB_I + 2]
+        prep = node_bi[k, NB_REP]
+        left = np.int64(node_bi[k, NB_LEFT])
         for side in range(2):
-            c = node_k[k, NK_LEFT + side]
+            c = left + side  # siblings are side by side (build_forest)
             # The left child takes the parent's slot, the right child a new one.
             cs = s if side == 0 else n_slots
-            if node_k[c, NK_REP] == node_k[k, NK_REP]:
+            j = np.int64(node_bi[c, NB_REP])
+            if j == prep:
                 m0, m1, m2, ratio = pm0, pm1, pm2, pratio
             else:
-                m0, m1, m2, ratio, nr = light_mgv(node_k[c, NK_REP], light_f, x0, x1, x2, n0, n1, n2, r0, r1, r2,
-                                                  rd0, rd1, rd2, rs0, rs1, rs2, exponent, clamp_d2, ray_offset,
-                                                  visibility, occluded1, scene, buf)
-                rays += nr
+                c2 = clamp_d2 if light_f[j, LF_INDIRECT] > 0.0 else 0.0
+                m0, m1, m2, ratio, lit, o0, o1, o2, d0, d1, d2, tfar = _light_mg(
+                    np.int64(light_f[j, LF_TYPE]), light_f[j, LF_POS], light_f[j, LF_POS + 1],
+                    light_f[j, LF_POS + 2], light_f[j, LF_NRM], light_f[j, LF_NRM + 1], light_f[j, LF_NRM + 2],
+                    c2, x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, exponent, ray_offset)
+                # As light_mgv: one shadow ray counted per light with M G > 0.
+                if lit and visibility:
+                    rays += 1
+                    if tfar > 0.0 and ray_occluded(occluded1, scene, buf, o0, o1, o2, d0, d1, d2, 0.0, tfar):
+                        m0, m1, m2, ratio = 0.0, 0.0, 0.0, 1.0
             slot_node[cs] = c
             slot_mgv[cs, 0] = m0
             slot_mgv[cs, 1] = m1
             slot_mgv[cs, 2] = m2
             slot_ratio[cs] = ratio
-            t0 += m0 * node_f[c, NF_I]
-            t1 += m1 * node_f[c, NF_I + 1]
-            t2 += m2 * node_f[c, NF_I + 2]
-            b = node_bound(c, node_f, node_k, x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2,
-                           exponent, clamp_d2)
-            if b > 0.0:
+            i0 = np.float64(node_b[c, NB_I])
+            i1 = np.float64(node_b[c, NB_I + 1])
+            i2 = np.float64(node_b[c, NB_I + 2])
+            t0 += m0 * i0
+            t1 += m1 * i1
+            t2 += m2 * i2
+            if node_bi[c, NB_LEFT] < 0:
+                continue  # a leaf: exact, never refined
+            b = _record_bound(x0, x1, x2, n0, n1, n2, r0, r1, r2, fr, rd0, rd1, rd2, rs0, rs1, rs2, exponent,
+                              clamp_d2, node_bi[c, NB_FLAGS], np.float64(node_b[c, NB_LO]),
+                              np.float64(node_b[c, NB_LO + 1]), np.float64(node_b[c, NB_LO + 2]),
+                              np.float64(node_b[c, NB_HI]), np.float64(node_b[c, NB_HI + 1]),
+                              np.float64(node_b[c, NB_HI + 2]), np.float64(node_b[c, NB_AXIS]),
+                              np.float64(node_b[c, NB_AXIS + 1]), np.float64(node_b[c, NB_AXIS + 2]),
+                              np.float64(node_b[c, NB_COS]), i0, i1, i2)
+            if b <= 0.0:
+                continue
+            if top_free:
+                size = _sift_down(heap_key, heap_slot, size, b, cs)
+                top_free = False
+            else:
                 size = _heap_push(heap_key, heap_slot, size, b, cs)
+                heap_key[size] = -np.inf
+        if top_free:  # no child entered the heap: the last entry fills the top
+            size -= 1
+            key = heap_key[size]
+            heap_key[size] = -np.inf
+            if size > 0:
+                _sift_down(heap_key, heap_slot, size, key, heap_slot[size])
         n_slots += 1
 
     # The final sum again, from the cut itself: the running total above drifts by cancellation.
@@ -368,9 +486,9 @@ def lightcut(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, e
     lost = 0.0
     for s in range(n_slots):
         k = slot_node[s]
-        e0 = slot_mgv[s, 0] * node_f[k, NF_I]
-        e1 = slot_mgv[s, 1] * node_f[k, NF_I + 1]
-        e2 = slot_mgv[s, 2] * node_f[k, NF_I + 2]
+        e0 = slot_mgv[s, 0] * node_b[k, NB_I]
+        e1 = slot_mgv[s, 1] * node_b[k, NB_I + 1]
+        e2 = slot_mgv[s, 2] * node_b[k, NB_I + 2]
         t0 += e0
         t1 += e1
         t2 += e2

@@ -94,7 +94,7 @@ class RenderResult:
 
 @njit(cache=True, error_model="numpy")
 def _render_pixel(intersect1, occluded1, scene, cam, seed, spp, sx, sy, px, py,
-                  face_normal, albedo, specular, exponent, emission, node_f, node_k, roots, light_f, light_i,
+                  face_normal, albedo, specular, exponent, emission, node_b, node_bi, roots, light_f, light_i,
                   env_pixels, env_rotation, env_scale, eps, max_cut, clamp_d2, ray_offset, visibility, reference,
                   buf, heap_key, heap_slot, slot_node, slot_mgv, slot_ratio):
     """All eye rays of pixel (px, py): returns (L_r, L_g, L_b, cut, shadow_rays, clamp_lost), cut
@@ -134,7 +134,7 @@ def _render_pixel(intersect1, occluded1, scene, cam, seed, spp, sx, sy, px, py,
                              light_f, light_i, clamp_d2, ray_offset, visibility, occluded1, scene, buf)
         else:
             res = lightcut(p0, p1, p2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, exponent[prim],
-                           node_f, node_k, roots, light_f, eps, max_cut, clamp_d2, ray_offset, visibility,
+                           node_b, node_bi, roots, light_f, eps, max_cut, clamp_d2, ray_offset, visibility,
                            occluded1, scene, buf, heap_key, heap_slot, slot_node, slot_mgv, slot_ratio)
         a0 += res[0]
         a1 += res[1]
@@ -147,7 +147,7 @@ def _render_pixel(intersect1, occluded1, scene, cam, seed, spp, sx, sy, px, py,
 
 @njit(parallel=True, cache=True, error_model="numpy")
 def _render_band(intersect1, occluded1, scene, cam, seed, spp, sx, sy, x0, x1, y0, y1,
-                 face_normal, albedo, specular, exponent, emission, node_f, node_k, roots, light_f, light_i,
+                 face_normal, albedo, specular, exponent, emission, node_b, node_bi, roots, light_f, light_i,
                  env_pixels, env_rotation, env_scale, eps, max_cut, clamp_d2, ray_offset, visibility, reference,
                  out_rgb, out_cut, out_rays, out_lost):
     """Render pixels [x0, x1) x [y0, y1) (full-image coordinates) into the band's output rows.
@@ -157,7 +157,7 @@ def _render_band(intersect1, occluded1, scene, cam, seed, spp, sx, sy, x0, x1, y
     """
     cols = x1 - x0
     n = (y1 - y0) * cols
-    cap = max(max_cut, roots.shape[0]) + 1
+    cap = max(max_cut, roots.shape[0]) + 2
     for c in prange((n + CHUNK - 1) // CHUNK):
         buf = new_ray_buffer()
         heap_key = np.empty(cap)
@@ -170,7 +170,7 @@ def _render_band(intersect1, occluded1, scene, cam, seed, spp, sx, sy, x0, x1, y
             col = i - row * cols
             a0, a1, a2, cut, rays, lost = _render_pixel(
                 intersect1, occluded1, scene, cam, seed, spp, sx, sy, x0 + col, y0 + row,
-                face_normal, albedo, specular, exponent, emission, node_f, node_k, roots, light_f, light_i,
+                face_normal, albedo, specular, exponent, emission, node_b, node_bi, roots, light_f, light_i,
                 env_pixels, env_rotation, env_scale, eps, max_cut, clamp_d2, ray_offset, visibility, reference,
                 buf, heap_key, heap_slot, slot_node, slot_mgv, slot_ratio)
             out_rgb[row, col, 0] = a0 / spp
@@ -244,7 +244,7 @@ def _render(scene, caster, lights, trees, camera, spp, eps, max_cut, clamp, clam
         with numba.parallel_chunksize(PARALLEL_CHUNKS):
             _render_band(intersect1, occluded1, scene_handle, cam, seed, spp, sx, sy, x0, x1, y0 + b0, y0 + b1,
                          face_normal, albedo, specular, exponent, emission,
-                         f.node_f, f.node_k, f.roots, f.light_f, f.light_i, env_pixels, env_rotation, env_scale,
+                         f.node_b, f.node_bi, f.roots, f.light_f, f.light_i, env_pixels, env_rotation, env_scale,
                          float(eps), max_cut, float(clamp_d2), float(ray_offset), bool(visibility),
                          bool(reference), rgb[b0:b1], cut[b0:b1], rays[b0:b1], lost[b0:b1])
         if progress is not None:
