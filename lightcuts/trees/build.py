@@ -32,6 +32,8 @@ from lightcuts.trees.tree import LightTree
 _DIAGONAL_KEYS = ("scene_diagonal", "diagonal")
 # How far from unit length a normal (oriented) or a direction (directional) may be.
 _UNIT_TOL = 1e-6
+# Nodes per block of _fill_nodes: their rows (about 200 bytes a node) stay in the L2 cache.
+_FILL_BLOCK = 4096
 
 
 def default_c(lights: LightSet) -> float:
@@ -54,25 +56,84 @@ def default_c(lights: LightSet) -> float:
     return diag / 16.0 if diag > 0 else 1.0
 
 
-def _check_lights(lights: LightSet) -> None:
-    """LightcutsError naming the array at fault, before anything reaches a kernel."""
+def _check_lights(lights: LightSet) -> np.ndarray:
+    """LightcutsError naming the array at fault, before anything reaches a kernel that computes with
+    it; returns the (N, 3) normals the tree uses (oriented lights: ``lights.normal`` rescaled to unit
+    length, see build_tree; other types: ``lights.normal``)."""
     if not isinstance(lights, LightSet):
         raise TypeError(f"build_tree expects a LightSet, got {type(lights).__name__}")
     if len(lights) == 0:
         raise LightcutsError("lights: the light set is empty")
-    for key in ("position", "normal", "intensity"):
-        if not np.all(np.isfinite(getattr(lights, key))):
-            raise LightcutsError(f"lights: {key} has non-finite values")
-    if np.any(lights.intensity < 0):
-        raise LightcutsError("lights: intensity has negative values")
     unit_key = {"oriented": "normal", "directional": "position"}.get(lights.type)
-    if unit_key is not None:
-        err = np.abs(np.linalg.norm(getattr(lights, unit_key), axis=1) - 1.0)
-        i = int(np.argmax(err))
-        if err[i] > _UNIT_TOL:
-            what = "normals" if unit_key == "normal" else "directions (position)"
-            raise LightcutsError(f"lights: {lights.type} light {unit_key} {i} is not unit length "
-                                 f"(|v| - 1 = {err[i]:.3g}); {what} must be unit vectors")
+    unit = {None: 0, "normal": 1, "position": 2}[unit_key]
+    nonfinite, negative, worst, err, unit_normal = _scan_lights(lights.position, lights.normal, lights.intensity, unit)
+    for bit, key in enumerate(("position", "normal", "intensity")):
+        if nonfinite >> bit & 1:
+            raise LightcutsError(f"lights: {key} has non-finite values")
+    if negative:
+        raise LightcutsError("lights: intensity has negative values")
+    if unit_key is not None and err > _UNIT_TOL:
+        what = "normals" if unit_key == "normal" else "directions (position)"
+        raise LightcutsError(f"lights: {lights.type} light {unit_key} {worst} is not unit length "
+                             f"(|v| - 1 = {err:.3g}); {what} must be unit vectors")
+    return unit_normal if unit == 1 else lights.normal
+
+
+@njit(cache=True)
+def _scan_lights(position, normal, intensity, unit):
+    """One read of the light arrays for _check_lights, (N, 3) float64 each.
+
+    unit : 1 to check (and rescale) the normals, 2 to check the positions, 0 neither
+    Returns (nonfinite, negative, worst, err, unit_normal): a bitmask of the arrays holding non-finite
+    values (1 position, 2 normal, 4 intensity), whether an intensity is negative, the first row whose
+    vector is furthest from unit length and that distance ``| |v| - 1 |``, and if unit == 1 the
+    normals divided by their lengths (else an empty array). ``|v|`` is summed as np.linalg.norm sums
+    it, so these are the numpy expressions' results, bit for bit.
+    """
+    n = position.shape[0]
+    unit_normal = np.empty((n if unit == 1 else 0, 3))
+    nonfinite = 0
+    negative = False
+    worst = 0
+    err = -1.0
+    for i in range(n):
+        for d in range(3):
+            if not np.isfinite(position[i, d]):
+                nonfinite |= 1
+            if not np.isfinite(normal[i, d]):
+                nonfinite |= 2
+            if not np.isfinite(intensity[i, d]):
+                nonfinite |= 4
+            if intensity[i, d] < 0.0:
+                negative = True
+        if unit == 0:
+            continue
+        if unit == 1:
+            x, y, z = normal[i, 0], normal[i, 1], normal[i, 2]
+        else:
+            x, y, z = position[i, 0], position[i, 1], position[i, 2]
+        length = np.sqrt(x * x + y * y + z * z)
+        if abs(length - 1.0) > err:
+            worst = i
+            err = abs(length - 1.0)
+        if unit == 1 and length > 0.0:  # a zero normal fails the unit check; no 0 / 0 here
+            unit_normal[i, 0] = x / length
+            unit_normal[i, 1] = y / length
+            unit_normal[i, 2] = z / length
+    return nonfinite, negative, worst, err, unit_normal
+
+
+# The topology rules _check_tree tests, in the order it tests them: its code - 1 indexes this.
+_TOPOLOGY_ERRORS = (
+    "node {i} has exactly one child",
+    "internal node {i} has a light",
+    "child ids outside [-1, {k})",
+    "{count} leaves for {n} lights, or a leaf with a light index outside [0, {n})",
+    "light {i} is in {count} leaves, expected exactly one",
+    "the root {root} is the child of another node",
+    "node {i} is the child of {count} nodes, expected exactly one",
+    "some nodes are not reachable from the root",
+)
 
 
 def _check_topology(name: str, out, n: int):
@@ -89,7 +150,13 @@ def _check_topology(name: str, out, n: int):
         a = np.asarray(a)
         if a.shape != (k,) or not np.issubdtype(a.dtype, np.integer):
             raise bad(f"{key} has shape {a.shape} and dtype {a.dtype}, expected ({k},) integers for {n} lights")
-        arrays.append(a.astype(np.int64))
+        if a.dtype == np.int32:
+            a = a.copy()
+        else:
+            # Every valid id fits in int32; clipping the others keeps each comparison the checks
+            # make (< -1, < 0, >= k, >= n), so one int32 kernel checks every integer dtype.
+            a = np.clip(a.astype(np.int64), -2**31, 2**31 - 1).astype(np.int32)
+        arrays.append(a)
     left, right, light = arrays
     try:
         root = int(out[3])
@@ -97,40 +164,80 @@ def _check_topology(name: str, out, n: int):
         raise bad(f"root {out[3]!r} is not an integer") from None
     if not 0 <= root < k:
         raise bad(f"root {root} is not a node id in [0, {k})")
-    leaf = left < 0
-    if np.any(leaf != (right < 0)):
-        raise bad(f"node {int(np.argmax(leaf != (right < 0)))} has exactly one child")
-    if np.any(light[~leaf] != -1):
-        raise bad(f"internal node {int(np.flatnonzero(~leaf & (light != -1))[0])} has a light")
-    if np.any(left >= k) or np.any(right >= k) or np.any(left < -1) or np.any(right < -1):
-        raise bad(f"child ids outside [-1, {k})")
-    leaf_lights = light[leaf]
-    if len(leaf_lights) != n or np.any(leaf_lights < 0) or np.any(leaf_lights >= n):
-        raise bad(f"{len(leaf_lights)} leaves for {n} lights, or a leaf with a light index outside [0, {n})")
-    seen = np.bincount(leaf_lights, minlength=n)
-    if np.any(seen != 1):
-        i = int(np.argmax(seen != 1))
-        raise bad(f"light {i} is in {seen[i]} leaves, expected exactly one")
-    parents = np.bincount(np.concatenate([left[~leaf], right[~leaf]]), minlength=k)
-    if parents[root] != 0:
-        raise bad(f"the root {root} is the child of another node")
-    parents[root] = 1
-    if np.any(parents != 1):
-        i = int(np.argmax(parents != 1))
-        raise bad(f"node {i} is the child of {parents[i]} nodes, expected exactly one")
-    left, right, light = (a.astype(np.int32) for a in (left, right, light))
     order = np.empty(k, np.int32)
-    # Every non-root node has one parent and the root none, so a walk from the root never revisits
-    # a node; it reaches all k nodes unless some are on a cycle cut off from the root.
-    if _preorder(left, right, root, order) != k:
-        raise bad("some nodes are not reachable from the root")
+    code, i, count = _check_tree(left, right, light, root, n, order)
+    if code:
+        raise bad(_TOPOLOGY_ERRORS[code - 1].format(i=i, count=count, k=k, n=n, root=root))
     return left, right, light, root, order
 
 
 @njit(cache=True)
-def _preorder(left, right, root, order):
-    """Fill ``order`` with node ids, parents before children; return how many were reached."""
+def _check_tree(left, right, light, root, n, order):
+    """The first topology rule broken, as ``(code, index, count)`` (code 0: none), see _TOPOLOGY_ERRORS.
+
+    If the topology is a tree, fills ``order`` with the node ids, parents before children. Builders
+    that number nodes monotonically (children above their parent, as the divisive builders do, or
+    below, as the agglomerative ones do) get a sequential order: the fill then streams through
+    memory instead of following a walk.
+    """
     k = left.shape[0]
+    one_child = False
+    has_light = False
+    out_of_range = False
+    leaves = 0
+    bad_light = False
+    up = True  # every child id above its parent's
+    down = True  # every child id below its parent's
+    # Flags only, no branch per node (leaves and internal nodes alternate unpredictably, and
+    # mispredictions cost more than the loop's work); the node at fault is looked for afterwards.
+    for node in range(k):
+        a = left[node]
+        b = right[node]
+        i = light[node]
+        leaf = a < 0
+        one_child |= leaf != (b < 0)
+        has_light |= (a >= 0) & (i != -1)
+        out_of_range |= (a < -1) | (b < -1) | (a >= k) | (b >= k)
+        leaves += leaf
+        bad_light |= leaf & ((i < 0) | (i >= n))
+        up &= leaf | ((a > node) & (b > node))
+        down &= leaf | ((a < node) & (b < node))
+    if one_child:
+        for node in range(k):
+            if (left[node] < 0) != (right[node] < 0):
+                return 1, node, 0
+    if has_light:
+        for node in range(k):
+            if left[node] >= 0 and light[node] != -1:
+                return 2, node, 0
+    if out_of_range:
+        return 3, 0, 0
+    if leaves != n or bad_light:
+        return 4, 0, leaves
+    seen = np.zeros(n, np.int32)
+    parents = np.zeros(k, np.int32)
+    for node in range(k):
+        a = left[node]
+        if a < 0:
+            seen[light[node]] += 1
+        else:
+            parents[a] += 1
+            parents[right[node]] += 1
+    for i in range(n):
+        if seen[i] != 1:
+            return 5, i, seen[i]
+    if parents[root] != 0:
+        return 6, root, 0
+    parents[root] = 1
+    for i in range(k):
+        if parents[i] != 1:
+            return 7, i, parents[i]
+    # One parent per node but the root, which has none: a walk from the root never revisits a node.
+    # With monotone ids it cannot miss one either (parents' ids lead down, or up, to the root).
+    if up or down:
+        for t in range(k):
+            order[t] = t if up else k - 1 - t
+        return 0, 0, 0
     stack = np.empty(k + 1, np.int32)
     stack[0] = root
     top = 1
@@ -141,10 +248,11 @@ def _preorder(left, right, root, order):
         order[count] = node
         count += 1
         if left[node] >= 0:
-            stack[top] = left[node]
-            stack[top + 1] = right[node]
+            stack[top] = right[node]
+            stack[top + 1] = left[node]
             top += 2
-    return count
+    # Otherwise some nodes lie on a cycle cut off from the root.
+    return (0, 0, 0) if count == k else (8, 0, 0)
 
 
 @njit(cache=True)
@@ -167,27 +275,61 @@ def _uniform(seed, a, b):
 @njit(cache=True)
 def _fill_nodes(order, left, right, light, position, normal, intensity, luminance, oriented, seed,
                 bbox_min, bbox_max, cone_axis, cone_cos, node_intensity, rep):
-    """Bounds, cones, intensities and representatives of every node, children before parents."""
+    """Bounds, cones, intensities and representatives of every node, children before parents.
+
+    The nodes are taken in blocks of _FILL_BLOCK along reversed ``order``: in each block first the
+    leaves (gathers from the light arrays), then the internal nodes (merges), then, once every node
+    is done, the cones in a pass of their own. A node's children come before it in reversed order,
+    so they are done in an earlier block or earlier in its own. Passes over one kind of node at a
+    time avoid a branch per node (leaves and internal nodes alternate unpredictably) and let the
+    CPU overlap the leaves' independent cache misses; blocks keep the nodes just written in cache.
+    """
     k = left.shape[0]
-    nlo = np.empty((k, 3))
+    # Until the cone pass, cone_axis holds the low corner of each node's box of normals and
+    # cone_cos its luminance: outputs as scratch, as fresh memory costs a page fault per 4 KB.
+    nlo = cone_axis
     nhi = np.empty((k, 3))
-    lum = np.empty(k)
-    first = np.empty(k, np.int64)  # smallest light index of the cluster: names it for the draw
-    for t in range(k - 1, -1, -1):
-        node = order[t]
-        a = left[node]
-        if a < 0:
+    lum = cone_cos
+    first = np.empty(k, np.int32)  # smallest light index of the cluster: names it for the draw
+    # The block's leaves and internal nodes, listed without a branch per node: one spare slot each
+    # takes the writes meant for the other list.
+    leaves = np.empty(_FILL_BLOCK + 1, np.int32)
+    internal = np.empty(_FILL_BLOCK + 1, np.int32)
+    buf = np.empty((_FILL_BLOCK, 10))  # a block's leaves' position, normal, intensity, luminance
+    for end in range(k, 0, -_FILL_BLOCK):
+        n_leaves = 0
+        n_internal = 0
+        for t in range(end - 1, max(end - _FILL_BLOCK, 0) - 1, -1):
+            node = order[t]
+            leaves[n_leaves] = node
+            internal[n_internal] = node
+            leaf = left[node] < 0
+            n_leaves += leaf
+            n_internal += not leaf
+        # Leaves: the gathers from the light arrays go to a small buffer first, in a loop with
+        # nothing else to wait on, so the CPU has many of their cache misses in flight.
+        for t in range(n_leaves):
+            i = light[leaves[t]]
+            for d in range(3):
+                buf[t, d] = position[i, d]
+                buf[t, 3 + d] = normal[i, d]
+                buf[t, 6 + d] = intensity[i, d]
+            buf[t, 9] = luminance[i]
+        for t in range(n_leaves):
+            node = leaves[t]
             i = light[node]
             for d in range(3):
-                bbox_min[node, d] = position[i, d]
-                bbox_max[node, d] = position[i, d]
-                nlo[node, d] = normal[i, d]
-                nhi[node, d] = normal[i, d]
-                node_intensity[node, d] = intensity[i, d]
-            lum[node] = luminance[i]
+                bbox_min[node, d] = buf[t, d]
+                bbox_max[node, d] = buf[t, d]
+                nlo[node, d] = buf[t, 3 + d]
+                nhi[node, d] = buf[t, 3 + d]
+                node_intensity[node, d] = buf[t, 6 + d]
+            lum[node] = buf[t, 9]
             first[node] = i
             rep[node] = i
-        else:
+        for t in range(n_internal):
+            node = internal[t]
+            a = left[node]
             b = right[node]
             for d in range(3):
                 bbox_min[node, d] = min(bbox_min[a, d], bbox_min[b, d])
@@ -204,18 +346,16 @@ def _fill_nodes(order, left, right, light, position, normal, intensity, luminanc
             total = lum[a] + lum[b]
             take_a = u < 0.5 if total <= 0.0 else u * total < lum[a]
             rep[node] = rep[a] if take_a else rep[b]
+    for node in range(k):
         if oriented:
             ax, ay, az, cc = cone_from_box(nlo[node, 0], nlo[node, 1], nlo[node, 2],
                                            nhi[node, 0], nhi[node, 1], nhi[node, 2])
-            cone_axis[node, 0] = ax
-            cone_axis[node, 1] = ay
-            cone_axis[node, 2] = az
-            cone_cos[node] = cc
         else:
-            cone_axis[node, 0] = 0.0
-            cone_axis[node, 1] = 0.0
-            cone_axis[node, 2] = 0.0
-            cone_cos[node] = -1.0
+            ax, ay, az, cc = 0.0, 0.0, 0.0, -1.0
+        cone_axis[node, 0] = ax
+        cone_axis[node, 1] = ay
+        cone_axis[node, 2] = az
+        cone_cos[node] = cc
 
 
 def build_tree(lights: LightSet, builder: str = "agglomerative", metric: str = "walter2008",
@@ -233,7 +373,7 @@ def build_tree(lights: LightSet, builder: str = "agglomerative", metric: str = "
     """
     builder_fn = get_builder(builder)
     metric_obj: Metric = as_metric(get_metric(metric), metric)
-    _check_lights(lights)
+    normal = _check_lights(lights)
     if c is None:
         c = default_c(lights)
     c = float(c)
@@ -241,11 +381,9 @@ def build_tree(lights: LightSet, builder: str = "agglomerative", metric: str = "
         raise LightcutsError(f"tree.c = {c}: must be a positive finite number")
     seed = int(seed)
     n = len(lights)
-    normal = lights.normal
-    if lights.type == "oriented":
-        # The box-of-normals cone assumes unit vectors; normals within _UNIT_TOL of unit length (e.g.
-        # read back from float32) would otherwise stray outside their cones by up to ~sqrt(_UNIT_TOL).
-        normal = normal / np.linalg.norm(normal, axis=1, keepdims=True)
+    # Oriented lights' normals come back from _check_lights rescaled to unit length: the
+    # box-of-normals cone assumes unit vectors, and normals within _UNIT_TOL of unit length (e.g.
+    # read back from float32) would otherwise stray outside their cones by up to ~sqrt(_UNIT_TOL).
     luminance = lights.luminance
     out = builder_fn(lights.position, normal, luminance, lights.type, metric_obj, c, seed)
     left, right, light, root, order = _check_topology(builder, out, n)

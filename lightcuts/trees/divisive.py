@@ -7,154 +7,242 @@ not used. Points strictly below the middle go left. A split that leaves one side
 identical, or a box so thin that its middle rounds onto an end) falls back to an even split by index,
 so the tree is always binary with 2N-1 nodes and terminates for any input.
 
-Node ids are depth-first (the root is 0): every subtree owns a contiguous id range.
+Both builders run one kernel on 6D points ``(position, c * normal)``; divisive-3d passes c = 0.
+Zero normal columns never have the strictly longest extent (ties go to the lowest axis), so that is
+exactly the 3D split, and one compiled kernel serves both.
+
+Node ids are depth-first (the root is 0, a left child directly follows its parent): every subtree
+owns a contiguous id range, which lets subtrees be built on several threads with the same result,
+and children have larger ids than their parent, so ``build_tree`` fills the nodes in decreasing id
+order, sequentially in memory.
 """
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
+
+import numba
 import numpy as np
 from numba import njit
 
 from lightcuts.trees.registry import BUILDERS
 
+_INF = np.inf
+# Below this many lights the build runs on one thread (thread start-up would cost more).
+_PARALLEL_MIN = 20000
+# The empty box: min/max accumulators before the first point.
+_EMPTY_LO = (_INF, _INF, _INF, _INF, _INF, _INF)
+_EMPTY_HI = (-_INF, -_INF, -_INF, -_INF, -_INF, -_INF)
+
+
+# The kernels keep 6D points and boxes in 6-tuples rather than small arrays: tuples stay in
+# registers, while a store into the point array could alias a small array and force a memory
+# round trip per coordinate (about 2.5x slower on the partition loop).
 
 @njit(cache=True)
-def _box(pts, s, e, lo, hi):
-    """Box of rows s..e-1 of pts into lo, hi."""
-    for d in range(pts.shape[1]):
-        lo[d] = np.inf
-        hi[d] = -np.inf
+def _row(pts, t):
+    """Row t of the (N, 6) points as a 6-tuple."""
+    return pts[t, 0], pts[t, 1], pts[t, 2], pts[t, 3], pts[t, 4], pts[t, 5]
+
+
+@njit(cache=True)
+def _grow(lo, hi, v):
+    """The box (lo, hi) grown to contain point v (6-tuples)."""
+    return ((min(lo[0], v[0]), min(lo[1], v[1]), min(lo[2], v[2]),
+             min(lo[3], v[3]), min(lo[4], v[4]), min(lo[5], v[5])),
+            (max(hi[0], v[0]), max(hi[1], v[1]), max(hi[2], v[2]),
+             max(hi[3], v[3]), max(hi[4], v[4]), max(hi[5], v[5])))
+
+
+@njit(cache=True)
+def _box(pts, s, e):
+    """Box (lo, hi) of rows s..e-1 of pts."""
+    lo = _EMPTY_LO
+    hi = _EMPTY_HI
     for t in range(s, e):
-        for d in range(pts.shape[1]):
-            v = pts[t, d]
-            lo[d] = min(lo[d], v)
-            hi[d] = max(hi[d], v)
+        lo, hi = _grow(lo, hi, _row(pts, t))
+    return lo, hi
 
 
 @njit(cache=True)
-def _split(pts, perm, s, e, lo, hi, llo, lhi, rlo, rhi):
-    """Split rows s..e-1 (box lo, hi) at the middle of the box's longest axis; return the split row.
+def _split(pts, perm, s, e, lo, hi):
+    """Split rows s..e-1 (box lo, hi) at the middle of the box's longest axis.
 
-    Rows move with their light index in ``perm``, so later scans are sequential. The pass also
-    computes both children's boxes into llo, lhi and rlo, rhi: each level reads each point once.
+    Returns the split row m and the boxes of rows s..m-1 and m..e-1. Rows move with their light
+    index in ``perm``, so later scans are sequential, and one pass both partitions and bounds the
+    children: each level reads each point once.
     """
-    dims = pts.shape[1]
     axis = 0
-    for d in range(dims):
-        if hi[d] - lo[d] > hi[axis] - lo[axis]:
+    ext = hi[0] - lo[0]
+    for d in range(1, 6):
+        if hi[d] - lo[d] > ext:
             axis = d
-        llo[d] = np.inf
-        lhi[d] = -np.inf
-        rlo[d] = np.inf
-        rhi[d] = -np.inf
+            ext = hi[d] - lo[d]
     mid = 0.5 * (lo[axis] + hi[axis])
+    llo = rlo = _EMPTY_LO
+    lhi = rhi = _EMPTY_HI
     # Rows below mid first (Lomuto): each row is classified once, when the scan reaches it, and
     # joins its side's box. A range with nothing below mid is left in its order, so the fallback
-    # below splits it by index.
+    # below splits it by index. Row order matters only to that fallback, but there it decides the
+    # clusters, so a faster partition with another order would change trees over duplicate points.
     i = s
     for t in range(s, e):
+        v = _row(pts, t)
         if pts[t, axis] < mid:
-            for d in range(dims):
-                v = pts[t, d]
+            for d in range(6):
                 pts[t, d] = pts[i, d]
-                pts[i, d] = v
-                llo[d] = min(llo[d], v)
-                lhi[d] = max(lhi[d], v)
+                pts[i, d] = v[d]
             q = perm[t]
             perm[t] = perm[i]
             perm[i] = q
             i += 1
+            llo, lhi = _grow(llo, lhi, v)
         else:
-            for d in range(dims):
-                rlo[d] = min(rlo[d], pts[t, d])
-                rhi[d] = max(rhi[d], pts[t, d])
+            rlo, rhi = _grow(rlo, rhi, v)
     if i == s or i == e:
         i = s + (e - s) // 2
-        _box(pts, s, i, llo, lhi)
-        _box(pts, i, e, rlo, rhi)
-    return i
+        llo, lhi = _box(pts, s, i)
+        rlo, rhi = _box(pts, i, e)
+    return i, llo, lhi, rlo, rhi
 
 
 @njit(cache=True)
-def _build_range(pts, perm, root, s0, e0, lo0, hi0, left, right, light):
-    """Subtree over rows s0..e0-1 (box lo0, hi0) with node ids root .. root + 2 (e0 - s0) - 2.
-
-    Ids are depth-first: a node with id r over rows s..e-1 split at row m has children r + 1 and
-    r + 2 (m - s), so every subtree owns a fixed id range whatever order the ranges are built in.
-    """
-    dims = pts.shape[1]
-    size = e0 - s0
-    # At most one pending sibling per level is on the stack: depth + 1 <= size entries.
-    st_node = np.empty(size, np.int64)
-    st_s = np.empty(size, np.int64)
-    st_e = np.empty(size, np.int64)
-    st_lo = np.empty((size, dims))
-    st_hi = np.empty((size, dims))
-    st_node[0] = root
-    st_s[0] = s0
-    st_e[0] = e0
-    st_lo[0] = lo0
-    st_hi[0] = hi0
-    top = 1
-    llo = np.empty(dims)
-    lhi = np.empty(dims)
-    rlo = np.empty(dims)
-    rhi = np.empty(dims)
-    while top > 0:
-        top -= 1
-        node = st_node[top]
-        s = st_s[top]
-        e = st_e[top]
-        if e - s == 1:
-            light[node] = perm[s]
-            continue
-        m = _split(pts, perm, s, e, st_lo[top], st_hi[top], llo, lhi, rlo, rhi)
-        left[node] = node + 1
-        right[node] = node + 2 * (m - s)
-        st_node[top] = node + 1
-        st_s[top] = s
-        st_e[top] = m
-        st_lo[top] = llo
-        st_hi[top] = lhi
-        st_node[top + 1] = node + 2 * (m - s)
-        st_s[top + 1] = m
-        st_e[top + 1] = e
-        st_lo[top + 1] = rlo
-        st_hi[top + 1] = rhi
-        top += 2
+def _points(position, normal, c):
+    """The (N, 6) points (position, c * normal), their box as a (1, 12) row (lo, hi), and the
+    identity (N,) int32 light order."""
+    n = position.shape[0]
+    pts = np.empty((n, 6))
+    perm = np.empty(n, np.int32)
+    lo = _EMPTY_LO
+    hi = _EMPTY_HI
+    for t in range(n):
+        for d in range(3):
+            pts[t, d] = position[t, d]
+            pts[t, 3 + d] = c * normal[t, d]
+        lo, hi = _grow(lo, hi, _row(pts, t))
+        perm[t] = t
+    box = np.empty((1, 12))
+    for d in range(6):
+        box[0, d] = lo[d]
+        box[0, 6 + d] = hi[d]
+    return pts, perm, box
 
 
 @njit(cache=True)
-def _divisive(points):
-    """Top-down tree over (N, D) points; returns (left, right, light) as (2N-1,) int32 arrays, root 0.
+def _visit(st_range, st_box, top, node, s, e, lo, hi, perm, left, right, light):
+    """Node ``node`` over rows s..e-1 (box lo, hi): a leaf is written at once, a larger range goes
+    on the stack at ``top``. Returns the new stack size."""
+    if e - s == 1:
+        left[node] = -1
+        right[node] = -1
+        light[node] = perm[s]
+        return top
+    st_range[top, 0] = node
+    st_range[top, 1] = s
+    st_range[top, 2] = e
+    for d in range(6):
+        st_box[top, d] = lo[d]
+        st_box[top, 6 + d] = hi[d]
+    return top + 1
 
-    Serial: a parallel version (serial top levels, then one task per subtree) was no faster on the
-    shared 2-core machine this was measured on, and compiles slower.
+
+@njit(cache=True, nogil=True)
+def _subtrees(pts, perm, tasks, boxes, cut, left, right, light):
+    """Build the subtrees of ``tasks`` (rows: node, s, e over rows s..e-1 of pts; ``boxes`` rows:
+    their lo, hi) into left, right, light.
+
+    A node with id r over rows s..e-1 split at row m has children r + 1 and r + 2 (m - s), so each
+    subtree owns a fixed id range and row range whatever order, or thread, builds it. Ranges of
+    2..cut rows (cut > 0) are not split but returned, as (tasks, boxes), for another call.
     """
-    n, dims = points.shape
+    size = 1
+    rows = 0
+    for j in range(tasks.shape[0]):
+        size = max(size, tasks[j, 2] - tasks[j, 1])
+        rows += tasks[j, 2] - tasks[j, 1]
+    # Explicit stack, the left child on top: at most one pending right sibling per level, so
+    # depth + 1 <= size entries of (node, s, e) and box (lo, hi).
+    st_range = np.empty((size, 3), np.int64)
+    st_box = np.empty((size, 12))
+    # Returned ranges are disjoint, of 2 rows or more.
+    out_range = np.empty((rows // 2 if cut > 0 else 0, 3), np.int64)
+    out_box = np.empty((out_range.shape[0], 12))
+    n_out = 0
+    for j in range(tasks.shape[0]):
+        lo = (boxes[j, 0], boxes[j, 1], boxes[j, 2], boxes[j, 3], boxes[j, 4], boxes[j, 5])
+        hi = (boxes[j, 6], boxes[j, 7], boxes[j, 8], boxes[j, 9], boxes[j, 10], boxes[j, 11])
+        # np.int64(0), not 0: a literal would compile a second _visit.
+        top = _visit(st_range, st_box, np.int64(0), tasks[j, 0], tasks[j, 1], tasks[j, 2], lo, hi, perm,
+                     left, right, light)
+        while top > 0:
+            top -= 1
+            node = st_range[top, 0]
+            s = st_range[top, 1]
+            e = st_range[top, 2]
+            if e - s <= cut:
+                for d in range(3):
+                    out_range[n_out, d] = st_range[top, d]
+                for d in range(12):
+                    out_box[n_out, d] = st_box[top, d]
+                n_out += 1
+                continue
+            lo = (st_box[top, 0], st_box[top, 1], st_box[top, 2], st_box[top, 3], st_box[top, 4], st_box[top, 5])
+            hi = (st_box[top, 6], st_box[top, 7], st_box[top, 8], st_box[top, 9], st_box[top, 10], st_box[top, 11])
+            m, llo, lhi, rlo, rhi = _split(pts, perm, s, e, lo, hi)
+            a = node + 1
+            b = node + 2 * (m - s)
+            left[node] = a
+            right[node] = b
+            light[node] = -1
+            top = _visit(st_range, st_box, top, b, m, e, rlo, rhi, perm, left, right, light)
+            top = _visit(st_range, st_box, top, a, s, m, llo, lhi, perm, left, right, light)
+    return out_range[:n_out], out_box[:n_out]
+
+
+def _divisive(position, normal, c):
+    """Top-down tree over the 6D points (position, c * normal), (N, 3) float64 each.
+
+    Returns (left, right, light) as (2N-1,) int32 arrays, root 0. With more than one numba thread
+    the top levels are split serially, then the subtrees below them are built on the threads
+    (the kernels release the GIL); the tree does not depend on the thread count.
+    """
+    n = position.shape[0]
     k = 2 * n - 1
-    left = np.full(k, -1, np.int32)
-    right = np.full(k, -1, np.int32)
-    light = np.full(k, -1, np.int32)
-    pts = points.copy()
-    perm = np.arange(n)
-    lo = np.empty(dims)
-    hi = np.empty(dims)
-    _box(pts, 0, n, lo, hi)
-    _build_range(pts, perm, 0, 0, n, lo, hi, left, right, light)
+    left = np.empty(k, np.int32)
+    right = np.empty(k, np.int32)
+    light = np.empty(k, np.int32)
+    pts, perm, box = _points(position, normal, c)
+    threads = numba.get_num_threads() if n >= _PARALLEL_MIN else 1
+    root = np.array([[0, 0, n]], np.int64)
+    # About 4 subtrees per thread or more, for balance: splits are at the middle, not the median.
+    cut = n // (4 * threads) if threads > 1 else 0
+    tasks, boxes = _subtrees(pts, perm, root, box, cut, left, right, light)
+    if len(tasks):
+        # Largest first, each to the least loaded thread.
+        sizes = tasks[:, 2] - tasks[:, 1]
+        load = [0] * threads
+        groups = [[] for _ in range(threads)]
+        for j in np.argsort(-sizes, kind="stable"):
+            w = load.index(min(load))
+            groups[w].append(j)
+            load[w] += int(sizes[j])
+        with ThreadPoolExecutor(threads) as pool:
+            list(pool.map(lambda g: _subtrees(pts, perm, tasks[g], boxes[g], 0, left, right, light),
+                          [np.array(g, np.int64) for g in groups if g]))
     return left, right, light
 
 
 @BUILDERS.register("divisive-3d")
 def divisive_3d(position, normal, luminance, light_type, metric, c, seed):
     """Split at the middle of the longest axis of the positions' box (directional: directions')."""
-    left, right, light = _divisive(np.ascontiguousarray(position, np.float64))
+    left, right, light = _divisive(np.ascontiguousarray(position, np.float64),
+                                   np.ascontiguousarray(normal, np.float64), 0.0)
     return left, right, light, 0
 
 
 @BUILDERS.register("divisive-6d")
 def divisive_6d(position, normal, luminance, light_type, metric, c, seed):
     """Split at the middle of the longest axis in 6D: positions plus normals scaled by c."""
-    points = np.concatenate([np.asarray(position, np.float64), c * np.asarray(normal, np.float64)], axis=1)
-    left, right, light = _divisive(np.ascontiguousarray(points))
+    left, right, light = _divisive(np.ascontiguousarray(position, np.float64),
+                                   np.ascontiguousarray(normal, np.float64), float(c))
     return left, right, light, 0
