@@ -53,6 +53,7 @@ import numpy as np
 from numba import njit, prange
 
 from lightcuts.accel.embree_kernels import new_ray_buffer, ray_intersect
+from lightcuts.hashing import mix64 as _mix64
 from lightcuts.lights.lightset import LUMINANCE, LightSet
 
 # Stream tags for the counter-based hash: the pilot's paths are independent of the run's.
@@ -64,14 +65,6 @@ _CHUNK = 1 << 17
 _SLOT_ROWS = 1 << 19
 _MAX_PATHS_PER_VPL = 64
 _DIMS = 8  # random dimensions per bounce (the hash's counter is bounce * _DIMS + dimension)
-
-
-@njit(cache=True)
-def _mix64(x):
-    """splitmix64's finaliser: a bijective avalanche of a uint64."""
-    x = (x ^ (x >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
-    x = (x ^ (x >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
-    return x ^ (x >> np.uint64(31))
 
 
 @njit(cache=True)
@@ -238,7 +231,7 @@ def _trace_fused(intersect1, scene, key, path0, n, cdf, p0, e1, e2, normal, powe
 
 
 def _mix64_py(x: int) -> int:
-    """:func:`_mix64` in Python (no kernel dispatch for two numbers)."""
+    """:func:`lightcuts.hashing.mix64` in Python (no kernel dispatch for two numbers)."""
     m = 0xFFFFFFFFFFFFFFFF
     x = ((x ^ (x >> 30)) * 0xBF58476D1CE4E5B9) & m
     x = ((x ^ (x >> 27)) * 0x94D049BB133111EB) & m

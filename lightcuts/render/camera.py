@@ -20,23 +20,14 @@ import numpy as np
 from numba import njit
 
 from lightcuts.errors import LightcutsError
+from lightcuts.hashing import mix64
 
 #: Layout of the (16,) float64 camera parameter array used by kernels.
 CAM_POSITION, CAM_RIGHT, CAM_UP, CAM_FORWARD = 0, 3, 6, 9
 CAM_SCALE_X, CAM_SCALE_Y, CAM_WIDTH, CAM_HEIGHT = 12, 13, 14, 15
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
-_M1 = np.uint64(0xBF58476D1CE4E5B9)
-_M2 = np.uint64(0x94D049BB133111EB)
-_S30, _S27, _S31, _S11 = np.uint64(30), np.uint64(27), np.uint64(31), np.uint64(11)
-
-
-@njit(cache=True, error_model="numpy")
-def mix64(z):
-    """splitmix64's finaliser: a bijective hash of a uint64."""
-    z = (z ^ (z >> _S30)) * _M1
-    z = (z ^ (z >> _S27)) * _M2
-    return z ^ (z >> _S31)
+_S11 = np.uint64(11)
 
 
 @njit(cache=True, error_model="numpy")

@@ -22,6 +22,7 @@ import numpy as np
 from numba import njit
 
 from lightcuts.errors import LightcutsError
+from lightcuts.hashing import mix64 as _mix64
 from lightcuts.lights.lightset import LightSet
 from lightcuts.trees.cones import cone_from_box
 from lightcuts.trees.metrics import Metric, as_metric
@@ -253,14 +254,6 @@ def _check_tree(left, right, light, root, n, order):
             top += 2
     # Otherwise some nodes lie on a cycle cut off from the root.
     return (0, 0, 0) if count == k else (8, 0, 0)
-
-
-@njit(cache=True)
-def _mix64(x):
-    """splitmix64 finaliser: a well-mixed uint64 from a uint64."""
-    x = (x ^ (x >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
-    x = (x ^ (x >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
-    return x ^ (x >> np.uint64(31))
 
 
 @njit(cache=True)
