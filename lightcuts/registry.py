@@ -8,7 +8,7 @@ group (e.g. ``lightcuts.builders``), loaded the first time a name is looked up.
 from __future__ import annotations
 
 from importlib.metadata import entry_points
-from typing import Callable, Generic, TypeVar
+from typing import Generic, TypeVar
 
 from lightcuts.errors import LightcutsError
 
@@ -23,9 +23,8 @@ class Registry(Generic[T]):
     kind : str
         What the entries are, for messages ("builder", "metric", "ray caster").
     group : str, optional
-        Entry-point group scanned once for outside registrations. Each entry point may be a
-        callable taking this registry (it registers what it likes) or the object to register
-        under the entry point's name.
+        Entry-point group scanned once for outside registrations; each entry point names the
+        object to register under the entry point's name.
     """
 
     def __init__(self, kind: str, group: str | None = None):
@@ -62,10 +61,7 @@ class Registry(Generic[T]):
                 obj = ep.load()
             except Exception as exc:  # a broken plugin must not hide the built-in entries
                 raise LightcutsError(f"entry point {ep.name!r} in group {self.group!r} failed to load: {exc}")
-            if callable(obj) and getattr(obj, "__lightcuts_plugin__", False):
-                obj(self)
-            else:
-                self._entries[ep.name] = obj
+            self._entries[ep.name] = obj
 
     def names(self) -> list[str]:
         """Sorted names of all entries (built-in and from entry points)."""
@@ -90,8 +86,3 @@ class Registry(Generic[T]):
             return False
         return True
 
-
-def plugin(fn: Callable) -> Callable:
-    """Mark an entry-point target as a registration hook ``fn(registry)`` rather than an entry."""
-    fn.__lightcuts_plugin__ = True
-    return fn
