@@ -34,7 +34,6 @@ The machine has 2 cores shared with other work: wall times are noisy (the load a
 from __future__ import annotations
 
 import argparse
-import csv
 import os
 import statistics
 import subprocess
@@ -49,7 +48,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from lightcuts.accel import make_caster  # noqa: E402
-from lightcuts.io import atomic_path  # noqa: E402
+from lightcuts.io import save_csv  # noqa: E402
 from lightcuts.lights.indirect import indirect_lights  # noqa: E402
 from lightcuts.scene.cornell import cornell_box  # noqa: E402
 from lightcuts.trees import build_tree, default_c, get_metric  # noqa: E402
@@ -228,13 +227,7 @@ def main() -> None:
         print(f"first call (64 lights): {cold:.1f} s with an empty numba cache, {cached:.2f} s from the cache")
     add("load_avg", "", "", load, "")
 
-    out = Path(opts.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    with atomic_path(out) as tmp_path:
-        with open(tmp_path, "w", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=FIELDS)
-            w.writeheader()
-            w.writerows(rows)
+    out = save_csv(opts.out, rows, FIELDS)
     print(f"\nwrote {out}")
 
 

@@ -20,7 +20,6 @@ start is printed and saved.
 from __future__ import annotations
 
 import argparse
-import csv
 import os
 import re
 import statistics
@@ -37,7 +36,7 @@ sys.path.insert(0, str(ROOT))
 
 import lightcuts.accel.embree  # noqa: E402,F401  (registers the built-in casters)
 from lightcuts.accel import RAY_CASTERS, make_caster  # noqa: E402
-from lightcuts.io import atomic_path  # noqa: E402
+from lightcuts.io import save_csv  # noqa: E402
 from lightcuts.lights.direct import direct_lights  # noqa: E402
 from lightcuts.lights.environment import environment_lights, procedural_sky  # noqa: E402
 from lightcuts.lights.indirect import indirect_lights  # noqa: E402
@@ -116,12 +115,7 @@ def main() -> None:
         cpu = f"{r['cpu_s']:.3f}" if r["cpu_s"] != "" else "-"
         print(f"{r['benchmark']:<20}{r['threads']:>8}{r['lights']:>9}{r['paths']!s:>8}{r['median_s']:>9.3f}{cpu:>9}")
     out = ROOT / "benchmarks" / "results" / "lights.csv"
-    with atomic_path(out) as tmp, open(tmp, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=["benchmark", "threads", "lights", "paths", "median_s", "cpu_s",
-                                          "load_average"])
-        w.writeheader()
-        for r in rows:
-            w.writerow({**r, "load_average": round(load, 2)})
+    save_csv(out, [{**r, "load_average": round(load, 2)} for r in rows])
     print(f"-> {out.relative_to(ROOT)}")
 
 

@@ -25,7 +25,6 @@ functions, in two fresh processes sharing an empty numba cache: cold (compiles) 
 from __future__ import annotations
 
 import argparse
-import csv
 import os
 import statistics
 import subprocess
@@ -41,7 +40,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from lightcuts.accel import make_caster  # noqa: E402
-from lightcuts.io import atomic_path  # noqa: E402
+from lightcuts.io import save_csv  # noqa: E402
 
 
 def sphere_scene(target_faces: int = 100_000):
@@ -246,10 +245,7 @@ def main(argv=None):
     for r in rows:
         print(f"{r['scene']:14s} {r['triangles']:7d} {r['query']:9s} {r['route']:12s} {r['threads']:3d} "
               f"{r['mrays_median']:8.2f} {r['mrays_per_cpu_s']:7.2f}")
-    with atomic_path(args.out) as tmp, open(tmp, "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    save_csv(args.out, rows)
     print(f"wrote {args.out}")
 
     if not args.no_cache_check:

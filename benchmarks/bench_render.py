@@ -29,7 +29,6 @@ average at the start is printed and saved. Results go to benchmarks/results/rend
 from __future__ import annotations
 
 import argparse
-import csv
 import os
 import statistics
 import sys
@@ -43,7 +42,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from lightcuts.accel import make_caster  # noqa: E402
-from lightcuts.io import atomic_path  # noqa: E402
+from lightcuts.io import save_csv  # noqa: E402
 from lightcuts.lights.direct import direct_lights  # noqa: E402
 from lightcuts.lights.indirect import indirect_lights  # noqa: E402
 from lightcuts.lights.lightset import LUMINANCE, LightSet  # noqa: E402
@@ -172,13 +171,7 @@ def main() -> None:
     print(f"crop {args.crop}x{args.crop}: lightcuts {t_crop:.3f} s, reference {t_ref:.2f} s, "
           f"speed-up {t_ref / t_crop:.0f}x")
 
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    with atomic_path(out) as tmp:
-        with open(tmp, "w", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=FIELDS)
-            w.writeheader()
-            w.writerows(rows)
+    out = save_csv(args.out, rows, FIELDS)
     print(f"-> {out}")
     caster.close()
 

@@ -21,7 +21,6 @@ printed and saved.
 from __future__ import annotations
 
 import argparse
-import csv
 import os
 import statistics
 import sys
@@ -34,7 +33,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from lightcuts.accel import make_caster  # noqa: E402
-from lightcuts.io import atomic_path  # noqa: E402
+from lightcuts.io import save_csv  # noqa: E402
 from lightcuts.lights.indirect import indirect_lights  # noqa: E402
 from lightcuts.scene.cornell import cornell_box  # noqa: E402
 from lightcuts.trees import BUILDERS, build_tree, default_c, get_metric, load_builtins  # noqa: E402
@@ -90,12 +89,7 @@ def main() -> None:
             rows.append(r)
             print(f"{r['n_lights']:>8} {name:<22} {r['first_wall_s']:>9.3f} {r['total_wall_s']:>9.4f} "
                   f"{r['total_cpu_s']:>9.4f} {r['topology_wall_s']:>11.4f} {r['depth']:>6}", flush=True)
-    out = Path(a.out)
-    with atomic_path(out) as tmp:
-        with open(tmp, "w", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=FIELDS)
-            w.writeheader()
-            w.writerows(rows)
+    out = save_csv(a.out, rows, FIELDS)
     print(f"-> {out}")
 
 

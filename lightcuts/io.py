@@ -51,3 +51,18 @@ def save_json(path: str | os.PathLike, data) -> Path:
     with atomic_path(path) as tmp:
         tmp.write_text(json.dumps(data, indent=2, sort_keys=False) + "\n")
     return path
+
+
+def save_csv(path: str | os.PathLike, rows: list[dict], fieldnames: list[str] | None = None) -> Path:
+    """Write dict rows as CSV (header = ``fieldnames``, default the first row's keys) atomically."""
+    import csv
+    import io
+
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=fieldnames or (list(rows[0]) if rows else []), lineterminator="\n")
+    w.writeheader()
+    w.writerows(rows)
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        tmp.write_text(buf.getvalue())
+    return path

@@ -16,15 +16,13 @@ actual count. Timings are wall-clock on a possibly shared machine: compare build
 
 from __future__ import annotations
 
-import csv
-import io
 import time
 from pathlib import Path
 
 import numpy as np
 
 from lightcuts.errors import LightcutsError
-from lightcuts.io import atomic_path
+from lightcuts.io import atomic_path, save_csv
 
 # The greedy reference is O(N^2) (at best): above this size a scaling run would take hours.
 GREEDY_MAX_N = 20000
@@ -80,13 +78,7 @@ def time_builder(lights, builder: str, repeats: int, metric: str, c, seed: int) 
 
 
 def write_csv(path: Path, rows: list[dict]) -> Path:
-    buf = io.StringIO()
-    w = csv.DictWriter(buf, fieldnames=CSV_FIELDS, lineterminator="\n")
-    w.writeheader()
-    w.writerows(rows)
-    with atomic_path(path) as tmp:
-        tmp.write_text(buf.getvalue())
-    return path
+    return save_csv(path, rows, CSV_FIELDS)
 
 
 def plot_scaling(path: Path, rows: list[dict], title: str) -> Path:
