@@ -242,6 +242,49 @@ def test_nodes_filled_bottom_up():
         np.testing.assert_allclose(tree.intensity[node], lights.intensity[idx].sum(axis=0), rtol=1e-12)
 
 
+@pytest.mark.parametrize("builder", ["divisive-6d", "test-shuffled"])
+def test_fill_on_threads_is_the_bottom_up_fill(builder, scratch_registries):
+    """A tree large enough for the threaded fill: every node is its children's union, and the
+    arrays are the same with one thread or two (a preorder builder, and one that is not)."""
+    import numba
+
+    from lightcuts.trees import build as build_module
+
+    lights = random_lights(25000, "oriented", seed=4)
+    assert 2 * len(lights) - 1 >= build_module._PARALLEL_MIN
+    base = get_builder("divisive-6d")
+
+    def shuffled(*args):
+        left, right, light, root = base(*args)
+        perm = np.random.default_rng(7).permutation(len(left))
+        inv = np.argsort(perm)
+        remap = lambda a: np.where(a >= 0, perm[np.maximum(a, 0)], -1)
+        return remap(left)[inv], remap(right)[inv], light[inv], perm[root]
+
+    BUILDERS.register("test-shuffled", shuffled)
+    before = numba.get_num_threads()
+    trees = []
+    for threads in (1, min(2, numba.config.NUMBA_NUM_THREADS)):
+        numba.set_num_threads(threads)
+        try:
+            trees.append(build_tree(lights, builder=builder, seed=5))
+        finally:
+            numba.set_num_threads(before)
+    one, two = trees
+    for key in ("bbox_min", "bbox_max", "cone_axis", "cone_cos", "intensity", "rep"):
+        np.testing.assert_array_equal(getattr(one, key), getattr(two, key), err_msg=key)
+    inner = np.flatnonzero(two.left >= 0)
+    a, b = two.left[inner], two.right[inner]
+    np.testing.assert_array_equal(two.bbox_min[inner], np.minimum(two.bbox_min[a], two.bbox_min[b]))
+    np.testing.assert_array_equal(two.bbox_max[inner], np.maximum(two.bbox_max[a], two.bbox_max[b]))
+    np.testing.assert_array_equal(two.intensity[inner], two.intensity[a] + two.intensity[b])
+    assert np.all((two.rep[inner] == two.rep[a]) | (two.rep[inner] == two.rep[b]))
+    leaf = np.flatnonzero(two.left < 0)
+    np.testing.assert_array_equal(two.bbox_min[leaf], lights.position[two.light[leaf]])
+    np.testing.assert_array_equal(two.intensity[leaf], lights.intensity[two.light[leaf]])
+    validate_tree(two, lights)
+
+
 def _clusters_by_node(tree):
     out = [None] * tree.n_nodes
     stack = [(tree.root, False)]

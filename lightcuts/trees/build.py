@@ -11,6 +11,9 @@ node, bottom-up, the same way for all builders:
 - the representative: a leaf's is its light; a parent takes the representative of one child with
   probability proportional to that child's scalar intensity (luminance), else the other's.
 
+The fill runs on the numba threads, one subtree per task (:func:`_fill_nodes`); every node's values
+depend only on its children's, so the tree does not depend on the thread count.
+
 The representative draw is a counter-based hash of ``(seed, cluster)``, where a cluster is named by
 the smallest light index of each of its two children; so the draw does not depend on how a builder
 numbers its nodes, and two builders that produce the same clusters get the same representatives.
@@ -18,6 +21,9 @@ numbers its nodes, and two builders that produce the same clusters get the same 
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
+
+import numba
 import numpy as np
 from numba import njit
 
@@ -33,8 +39,10 @@ from lightcuts.trees.tree import LightTree
 _DIAGONAL_KEYS = ("scene_diagonal", "diagonal")
 # How far from unit length a normal (oriented) or a direction (directional) may be.
 _UNIT_TOL = 1e-6
-# Nodes per block of _fill_nodes: their rows (about 200 bytes a node) stay in the L2 cache.
+# Nodes per block of _fill_range: their rows (about 200 bytes a node) stay in the L2 cache.
 _FILL_BLOCK = 4096
+# Below this many nodes the fill runs on one thread (thread start-up would cost more).
+_PARALLEL_MIN = 40000
 
 
 def default_c(lights: LightSet) -> float:
@@ -176,10 +184,9 @@ def _check_topology(name: str, out, n: int):
 def _check_tree(left, right, light, root, n, order):
     """The first topology rule broken, as ``(code, index, count)`` (code 0: none), see _TOPOLOGY_ERRORS.
 
-    If the topology is a tree, fills ``order`` with the node ids, parents before children. Builders
-    that number nodes monotonically (children above their parent, as the divisive builders do, or
-    below, as the agglomerative ones do) get a sequential order: the fill then streams through
-    memory instead of following a walk.
+    If the topology is a tree, fills ``order`` with the node ids in depth-first preorder
+    (:func:`_preorder`): parents before children, every subtree a contiguous range, which the fill
+    hands out to threads.
     """
     k = left.shape[0]
     one_child = False
@@ -187,8 +194,6 @@ def _check_tree(left, right, light, root, n, order):
     out_of_range = False
     leaves = 0
     bad_light = False
-    up = True  # every child id above its parent's
-    down = True  # every child id below its parent's
     # Flags only, no branch per node (leaves and internal nodes alternate unpredictably, and
     # mispredictions cost more than the loop's work); the node at fault is looked for afterwards.
     for node in range(k):
@@ -201,8 +206,6 @@ def _check_tree(left, right, light, root, n, order):
         out_of_range |= (a < -1) | (b < -1) | (a >= k) | (b >= k)
         leaves += leaf
         bad_light |= leaf & ((i < 0) | (i >= n))
-        up &= leaf | ((a > node) & (b > node))
-        down &= leaf | ((a < node) & (b < node))
     if one_child:
         for node in range(k):
             if (left[node] < 0) != (right[node] < 0):
@@ -233,12 +236,36 @@ def _check_tree(left, right, light, root, n, order):
     for i in range(k):
         if parents[i] != 1:
             return 7, i, parents[i]
-    # One parent per node but the root, which has none: a walk from the root never revisits a node.
-    # With monotone ids it cannot miss one either (parents' ids lead down, or up, to the root).
-    if up or down:
-        for t in range(k):
-            order[t] = t if up else k - 1 - t
-        return 0, 0, 0
+    # One parent per node but the root, which has none: a walk from the root never revisits a node,
+    # so it reaches all k nodes unless some lie on a cycle cut off from the root.
+    return (0, 0, 0) if _preorder(left, right, root, order) == k else (8, 0, 0)
+
+
+@njit(cache=True)
+def _preorder(left, right, root, order):
+    """Write the nodes below ``root`` into ``order`` depth-first, parent, left subtree, right subtree
+    (every subtree a contiguous range); returns how many were written (at most len(order)).
+
+    Builders that number nodes that way already (the divisive ones) get the identity, found without
+    a walk: a node's left child follows it and its right child follows the left subtree.
+    """
+    k = left.shape[0]
+    if root == 0:
+        size = np.ones(k, np.int32)
+        preorder = True
+        for node in range(k - 1, -1, -1):
+            a = left[node]
+            if a < 0:
+                continue
+            b = right[node]
+            if a != node + 1 or b != a + size[a] or b + size[b] > k:
+                preorder = False
+                break
+            size[node] = 1 + size[a] + size[b]
+        if preorder and size[0] == k:
+            for t in range(k):
+                order[t] = t
+            return k
     stack = np.empty(k + 1, np.int32)
     stack[0] = root
     top = 1
@@ -252,8 +279,7 @@ def _check_tree(left, right, light, root, n, order):
             stack[top] = right[node]
             stack[top + 1] = left[node]
             top += 2
-    # Otherwise some nodes lie on a cycle cut off from the root.
-    return (0, 0, 0) if count == k else (8, 0, 0)
+    return count
 
 
 @njit(cache=True)
@@ -266,33 +292,74 @@ def _uniform(seed, a, b):
 
 
 @njit(cache=True)
-def _fill_nodes(order, left, right, light, position, normal, intensity, luminance, oriented, seed,
-                bbox_min, bbox_max, cone_axis, cone_cos, node_intensity, rep):
-    """Bounds, cones, intensities and representatives of every node, children before parents.
+def _fill_tasks(order, left, right, cut):
+    """Split the preorder ``order`` into subtrees of at most ``cut`` nodes and the nodes above them.
 
-    The nodes are taken in blocks of _FILL_BLOCK along reversed ``order``: in each block first the
-    leaves (gathers from the light arrays), then the internal nodes (merges), then, once every node
-    is done, the cones in a pass of their own. A node's children come before it in reversed order,
-    so they are done in an earlier block or earlier in its own. Passes over one kind of node at a
-    time avoid a branch per node (leaves and internal nodes alternate unpredictably) and let the
-    CPU overlap the leaves' independent cache misses; blocks keep the nodes just written in cache.
+    Returns ``(tasks, tops)``: (M, 2) int64 ranges ``[s, e)`` of ``order``, each a whole subtree, and
+    the positions in ``order`` of the remaining nodes (parents before children).
     """
-    k = left.shape[0]
-    # Until the cone pass, cone_axis holds the low corner of each node's box of normals and
-    # cone_cos its luminance: outputs as scratch, as fresh memory costs a page fault per 4 KB.
-    nlo = cone_axis
-    nhi = np.empty((k, 3))
-    lum = cone_cos
-    first = np.empty(k, np.int32)  # smallest light index of the cluster: names it for the draw
+    k = order.shape[0]
+    size = np.ones(k, np.int64)
+    for t in range(k - 1, -1, -1):
+        node = order[t]
+        if left[node] >= 0:
+            size[node] = 1 + size[left[node]] + size[right[node]]
+    # Room for any tree (untouched memory costs nothing): a growing array's slice copy would cost
+    # numba seconds of compilation for its shape-mismatch error path.
+    tasks = np.empty((k, 2), np.int64)
+    tops = np.empty(k, np.int64)
+    n_tasks = 0
+    n_tops = 0
+    t = 0
+    while t < k:
+        m = size[order[t]]
+        if m <= cut:
+            tasks[n_tasks, 0] = t
+            tasks[n_tasks, 1] = t + m
+            n_tasks += 1
+            t += m
+        else:
+            tops[n_tops] = t
+            n_tops += 1
+            t += 1
+    return tasks[:n_tasks], tops[:n_tops]
+
+
+@njit(cache=True, nogil=True)
+def _fill_ranges(order, ranges, left, right, light, position, normal, intensity, luminance, seed,
+                 bbox_min, bbox_max, nlo, nhi, node_intensity, lum, first, rep):
+    """Boxes, boxes of normals, intensities, luminances and representatives of the nodes
+    ``order[s:e]`` for each row ``(s, e)`` of ``ranges`` (M, 2), last row first; each range's
+    children are in it or already done (``order`` lists parents first).
+
+    The nodes of a range are taken in blocks of _FILL_BLOCK from the end: in each block first the leaves
+    (gathers from the light arrays), then the internal nodes (merges). A node's children come after
+    it in ``order``, so they are done in an earlier block or earlier in its own. Passes over one
+    kind of node at a time avoid a branch per node (leaves and internal nodes alternate
+    unpredictably) and let the CPU overlap the leaves' independent cache misses; blocks keep the
+    nodes just written in cache. ``first`` : smallest light index of each cluster, which names it
+    for the representative draw.
+    """
+    block = _FILL_BLOCK
     # The block's leaves and internal nodes, listed without a branch per node: one spare slot each
     # takes the writes meant for the other list.
-    leaves = np.empty(_FILL_BLOCK + 1, np.int32)
-    internal = np.empty(_FILL_BLOCK + 1, np.int32)
-    buf = np.empty((_FILL_BLOCK, 10))  # a block's leaves' position, normal, intensity, luminance
-    for end in range(k, 0, -_FILL_BLOCK):
+    leaves = np.empty(block + 1, np.int32)
+    internal = np.empty(block + 1, np.int32)
+    buf = np.empty((block, 10))  # a block's leaves' position, normal, intensity, luminance
+    for j in range(ranges.shape[0] - 1, -1, -1):
+        _fill_blocks(order, ranges[j, 0], ranges[j, 1], leaves, internal, buf, left, right, light, position, normal,
+                     intensity, luminance, seed, bbox_min, bbox_max, nlo, nhi, node_intensity, lum, first, rep)
+
+
+@njit(cache=True)
+def _fill_blocks(order, s, e, leaves, internal, buf, left, right, light, position, normal, intensity, luminance, seed,
+                 bbox_min, bbox_max, nlo, nhi, node_intensity, lum, first, rep):
+    """The nodes ``order[s:e]`` for :func:`_fill_ranges`, with its scratch ``leaves``, ``internal``, ``buf``."""
+    block = buf.shape[0]
+    for end in range(e, s, -block):
         n_leaves = 0
         n_internal = 0
-        for t in range(end - 1, max(end - _FILL_BLOCK, 0) - 1, -1):
+        for t in range(end - 1, max(end - block, s) - 1, -1):
             node = order[t]
             leaves[n_leaves] = node
             internal[n_internal] = node
@@ -339,16 +406,64 @@ def _fill_nodes(order, left, right, light, position, normal, intensity, luminanc
             total = lum[a] + lum[b]
             take_a = u < 0.5 if total <= 0.0 else u * total < lum[a]
             rep[node] = rep[a] if take_a else rep[b]
-    for node in range(k):
+
+
+@njit(cache=True, nogil=True)
+def _fill_cones(nlo, nhi, s, e, axis, cos_half):
+    """Cones of nodes s..e-1 from their boxes of normals (``axis`` may be ``nlo`` itself)."""
+    for node in range(s, e):
+        ax, ay, az, cc = cone_from_box(nlo[node, 0], nlo[node, 1], nlo[node, 2], nhi[node, 0], nhi[node, 1],
+                                       nhi[node, 2])
+        axis[node, 0] = ax
+        axis[node, 1] = ay
+        axis[node, 2] = az
+        cos_half[node] = cc
+
+
+def _fill_nodes(order, left, right, light, position, normal, intensity, luminance, oriented, seed):
+    """``(bbox_min, bbox_max, cone_axis, cone_cos, intensity, rep)`` of every node, bottom-up.
+
+    ``order`` : the nodes in preorder (:func:`_check_tree`). Subtrees of about k / (8 threads) nodes
+    (:func:`_fill_tasks`) are filled on all numba threads (Python threads; the kernels release the
+    GIL, and a ``parallel=True`` kernel would add seconds of compilation), then the nodes above
+    them, then every cone. Each node's values depend on its children's only, so the result does not
+    depend on the thread count.
+    """
+    k = left.shape[0]
+    bbox_min, bbox_max, cone_axis, node_intensity = (np.empty((k, 3)) for _ in range(4))
+    cone_cos = np.empty(k)
+    rep = np.empty(k, np.int32)
+    # Until the cone pass, cone_axis holds the low corner of each node's box of normals and
+    # cone_cos its luminance: outputs as scratch, as fresh memory costs a page fault per 4 KB.
+    nlo, lum = cone_axis, cone_cos
+    nhi = np.empty((k, 3))
+    first = np.empty(k, np.int32)
+    threads = numba.get_num_threads() if k >= _PARALLEL_MIN else 1
+    tasks, tops = _fill_tasks(order, left, right, max(k // (8 * threads), _FILL_BLOCK))
+    args = (left, right, light, position, normal, intensity, luminance, seed, bbox_min, bbox_max, nlo, nhi,
+            node_intensity, lum, first, rep)
+    groups = _balance(tasks[:, 1] - tasks[:, 0], threads)
+    with ThreadPoolExecutor(threads) as pool:
+        list(pool.map(lambda g: _fill_ranges(order, tasks[g], *args), groups))
+        _fill_ranges(order, np.stack([tops, tops + 1], axis=1), *args)
         if oriented:
-            ax, ay, az, cc = cone_from_box(nlo[node, 0], nlo[node, 1], nlo[node, 2],
-                                           nhi[node, 0], nhi[node, 1], nhi[node, 2])
-        else:
-            ax, ay, az, cc = 0.0, 0.0, 0.0, -1.0
-        cone_axis[node, 0] = ax
-        cone_axis[node, 1] = ay
-        cone_axis[node, 2] = az
-        cone_cos[node] = cc
+            cuts = np.linspace(0, k, threads + 1).astype(np.int64)
+            list(pool.map(lambda t: _fill_cones(nlo, nhi, cuts[t], cuts[t + 1], cone_axis, cone_cos), range(threads)))
+    if not oriented:
+        cone_axis[:] = 0.0
+        cone_cos[:] = -1.0
+    return bbox_min, bbox_max, cone_axis, cone_cos, node_intensity, rep
+
+
+def _balance(sizes: np.ndarray, threads: int) -> list[np.ndarray]:
+    """Task indices per thread: largest first, each to the least loaded thread."""
+    load = [0] * threads
+    groups = [[] for _ in range(threads)]
+    for j in np.argsort(-sizes, kind="stable"):
+        w = load.index(min(load))
+        groups[w].append(j)
+        load[w] += int(sizes[j])
+    return [np.array(g, np.int64) for g in groups if g]
 
 
 def build_tree(lights: LightSet, builder: str = "agglomerative", metric: str = "walter2008",
@@ -380,12 +495,8 @@ def build_tree(lights: LightSet, builder: str = "agglomerative", metric: str = "
     luminance = lights.luminance
     out = builder_fn(lights.position, normal, luminance, lights.type, metric_obj, c, seed)
     left, right, light, root, order = _check_topology(builder, out, n)
-    k = 2 * n - 1
-    bbox_min, bbox_max, cone_axis, node_intensity = (np.empty((k, 3)) for _ in range(4))
-    cone_cos = np.empty(k)
-    rep = np.empty(k, np.int32)
-    _fill_nodes(order, left, right, light, lights.position, normal, lights.intensity, luminance,
-                lights.type == "oriented", np.uint64(seed % 2**64), bbox_min, bbox_max, cone_axis, cone_cos,
-                node_intensity, rep)
+    bbox_min, bbox_max, cone_axis, cone_cos, node_intensity, rep = _fill_nodes(
+        order, left, right, light, lights.position, normal, lights.intensity, luminance, lights.type == "oriented",
+        np.uint64(seed % 2**64))
     meta = dict(builder=builder, metric=metric_obj.name, c=c, seed=seed, type=lights.type, n_lights=n)
     return LightTree(left, right, light, bbox_min, bbox_max, cone_axis, cone_cos, node_intensity, rep, root, meta)

@@ -75,8 +75,21 @@ _COST = types.FunctionType(types.float64(*([types.float64] * 8), types.boolean, 
 _I32 = types.int32[::1]
 
 
-@njit(types.Tuple((_I32, _I32, _I32))(_COST, types.boolean, types.float64, types.float64[:, ::1],
-                                        types.float64[:, ::1], types.float64[::1]), cache=True)
+_SIGNATURE = types.Tuple((_I32, _I32, _I32))(_COST, types.boolean, types.float64, types.float64[:, ::1],
+                                           types.float64[:, ::1], types.float64[::1])
+_kernel = None
+
+
+def _greedy_kernel():
+    """The compiled kernel, made on first use: the explicit signature (one specialisation for every
+    metric, passed as a first-class function) would otherwise compile, or load from the cache, when
+    the module is imported, and every run imports the built-in builders."""
+    global _kernel
+    if _kernel is None:
+        _kernel = njit(_SIGNATURE, cache=True)(_greedy)
+    return _kernel
+
+
 def _greedy(cost, has_cone, c, position, normal, luminance):
     """Greedy clustering with cost(intensity, lo0..hi2, cone_cos, has_cone, c).
 
@@ -154,7 +167,7 @@ def _greedy(cost, has_cone, c, position, normal, luminance):
 def greedy(position, normal, luminance, light_type, metric, c, seed):
     """Reference builder: globally cheapest pair first (O(N^2)); any metric, user metrics included."""
     has_cone = light_type == "oriented" and metric.uses_cone
-    left, right, light = _greedy(metric.fn, has_cone, float(c), np.ascontiguousarray(position, np.float64),
+    left, right, light = _greedy_kernel()(metric.fn, has_cone, float(c), np.ascontiguousarray(position, np.float64),
                                  np.ascontiguousarray(normal, np.float64),
                                  np.ascontiguousarray(luminance, np.float64))
     return left, right, light, 2 * len(position) - 2
