@@ -29,7 +29,7 @@ from numba import njit
 
 from lightcuts.errors import LightcutsError
 from lightcuts.hashing import mix64 as _mix64
-from lightcuts.lights.lightset import LightSet
+from lightcuts.lights.lightset import LUMINANCE, LightSet
 from lightcuts.trees.cones import cone_from_box
 from lightcuts.trees.metrics import Metric, as_metric
 from lightcuts.trees.registry import get_builder, get_metric
@@ -39,7 +39,7 @@ from lightcuts.trees.tree import LightTree
 _DIAGONAL_KEYS = ("scene_diagonal", "diagonal")
 # How far from unit length a normal (oriented) or a direction (directional) may be.
 _UNIT_TOL = 1e-6
-# Nodes per block of _fill_range: their rows (about 200 bytes a node) stay in the L2 cache.
+# Nodes per block of _fill_blocks: their rows (about 200 bytes a node) stay in the L2 cache.
 _FILL_BLOCK = 4096
 # Below this many nodes the fill runs on one thread (thread start-up would cost more).
 _PARALLEL_MIN = 40000
@@ -61,21 +61,39 @@ def default_c(lights: LightSet) -> float:
         if not np.isfinite(diag) or diag < 0:
             raise LightcutsError(f"lights: meta {key} = {diag} is not a finite non-negative number")
     if diag is None:
-        diag = float(np.linalg.norm(lights.position.max(axis=0) - lights.position.min(axis=0)))
+        diag = _box_diagonal(np.ascontiguousarray(lights.position, np.float64))
     return diag / 16.0 if diag > 0 else 1.0
 
 
-def _check_lights(lights: LightSet) -> np.ndarray:
+@njit(cache=True)
+def _box_diagonal(position):
+    """Length of the diagonal of the (N, 3) points' bounding box (numpy's column reductions over an
+    (N, 3) array take several times longer)."""
+    lo0 = lo1 = lo2 = np.inf
+    hi0 = hi1 = hi2 = -np.inf
+    for i in range(position.shape[0]):
+        lo0 = min(lo0, position[i, 0])
+        lo1 = min(lo1, position[i, 1])
+        lo2 = min(lo2, position[i, 2])
+        hi0 = max(hi0, position[i, 0])
+        hi1 = max(hi1, position[i, 1])
+        hi2 = max(hi2, position[i, 2])
+    return np.sqrt((hi0 - lo0) ** 2 + (hi1 - lo1) ** 2 + (hi2 - lo2) ** 2)
+
+
+def _check_lights(lights: LightSet) -> tuple[np.ndarray, np.ndarray]:
     """LightcutsError naming the array at fault, before anything reaches a kernel that computes with
     it; returns the (N, 3) normals the tree uses (oriented lights: ``lights.normal`` rescaled to unit
-    length, see build_tree; other types: ``lights.normal``)."""
+    length, see build_tree; other types: ``lights.normal``) and the (N,) luminances
+    (``lights.luminance``, bit for bit, from the same read of the arrays)."""
     if not isinstance(lights, LightSet):
         raise TypeError(f"build_tree expects a LightSet, got {type(lights).__name__}")
     if len(lights) == 0:
         raise LightcutsError("lights: the light set is empty")
     unit_key = {"oriented": "normal", "directional": "position"}.get(lights.type)
     unit = {None: 0, "normal": 1, "position": 2}[unit_key]
-    nonfinite, negative, worst, err, unit_normal = _scan_lights(lights.position, lights.normal, lights.intensity, unit)
+    nonfinite, negative, worst, err, unit_normal, luminance = _scan_lights(
+        lights.position, lights.normal, lights.intensity, np.asarray(LUMINANCE, np.float64), unit)
     for bit, key in enumerate(("position", "normal", "intensity")):
         if nonfinite >> bit & 1:
             raise LightcutsError(f"lights: {key} has non-finite values")
@@ -85,22 +103,25 @@ def _check_lights(lights: LightSet) -> np.ndarray:
         what = "normals" if unit_key == "normal" else "directions (position)"
         raise LightcutsError(f"lights: {lights.type} light {unit_key} {worst} is not unit length "
                              f"(|v| - 1 = {err:.3g}); {what} must be unit vectors")
-    return unit_normal if unit == 1 else lights.normal
+    return (unit_normal if unit == 1 else lights.normal), luminance
 
 
 @njit(cache=True)
-def _scan_lights(position, normal, intensity, unit):
+def _scan_lights(position, normal, intensity, weights, unit):
     """One read of the light arrays for _check_lights, (N, 3) float64 each.
 
     unit : 1 to check (and rescale) the normals, 2 to check the positions, 0 neither
-    Returns (nonfinite, negative, worst, err, unit_normal): a bitmask of the arrays holding non-finite
+    weights : (3,) luminance weights
+    Returns (nonfinite, negative, worst, err, unit_normal, luminance): a bitmask of the arrays holding non-finite
     values (1 position, 2 normal, 4 intensity), whether an intensity is negative, the first row whose
     vector is furthest from unit length and that distance ``| |v| - 1 |``, and if unit == 1 the
-    normals divided by their lengths (else an empty array). ``|v|`` is summed as np.linalg.norm sums
+    normals divided by their lengths (else an empty array), and the (N,) luminances summed in the
+    order of LightSet.luminance. ``|v|`` is summed as np.linalg.norm sums
     it, so these are the numpy expressions' results, bit for bit.
     """
     n = position.shape[0]
     unit_normal = np.empty((n if unit == 1 else 0, 3))
+    luminance = np.empty(n)
     nonfinite = 0
     negative = False
     worst = 0
@@ -115,6 +136,7 @@ def _scan_lights(position, normal, intensity, unit):
                 nonfinite |= 4
             if intensity[i, d] < 0.0:
                 negative = True
+        luminance[i] = intensity[i, 0] * weights[0] + intensity[i, 1] * weights[1] + intensity[i, 2] * weights[2]
         if unit == 0:
             continue
         if unit == 1:
@@ -129,7 +151,7 @@ def _scan_lights(position, normal, intensity, unit):
             unit_normal[i, 0] = x / length
             unit_normal[i, 1] = y / length
             unit_normal[i, 2] = z / length
-    return nonfinite, negative, worst, err, unit_normal
+    return nonfinite, negative, worst, err, unit_normal, luminance
 
 
 # The topology rules _check_tree tests, in the order it tests them: its code - 1 indexes this.
@@ -146,7 +168,8 @@ _TOPOLOGY_ERRORS = (
 
 
 def _check_topology(name: str, out, n: int):
-    """The builder's (left, right, light, root) as int32 arrays plus a parents-first node order;
+    """The builder's (left, right, light, root) as int32 arrays plus the nodes in preorder and each
+    node's subtree size (:func:`_preorder`);
     LightcutsError naming the builder if the topology is not a binary tree with one leaf per light."""
     def bad(msg: str) -> LightcutsError:
         return LightcutsError(f"builder {name!r} returned an invalid tree: {msg}")
@@ -174,19 +197,20 @@ def _check_topology(name: str, out, n: int):
     if not 0 <= root < k:
         raise bad(f"root {root} is not a node id in [0, {k})")
     order = np.empty(k, np.int32)
-    code, i, count = _check_tree(left, right, light, root, n, order)
+    size = np.empty(k, np.int32)
+    code, i, count = _check_tree(left, right, light, root, n, order, size)
     if code:
         raise bad(_TOPOLOGY_ERRORS[code - 1].format(i=i, count=count, k=k, n=n, root=root))
-    return left, right, light, root, order
+    return left, right, light, root, order, size
 
 
 @njit(cache=True)
-def _check_tree(left, right, light, root, n, order):
+def _check_tree(left, right, light, root, n, order, size):
     """The first topology rule broken, as ``(code, index, count)`` (code 0: none), see _TOPOLOGY_ERRORS.
 
-    If the topology is a tree, fills ``order`` with the node ids in depth-first preorder
-    (:func:`_preorder`): parents before children, every subtree a contiguous range, which the fill
-    hands out to threads.
+    If the topology is a tree, fills ``order`` with the node ids in depth-first preorder and ``size``
+    with each node's subtree size (:func:`_preorder`): parents before children, every subtree a
+    contiguous range, which the fill hands out to threads.
     """
     k = left.shape[0]
     one_child = False
@@ -238,24 +262,25 @@ def _check_tree(left, right, light, root, n, order):
             return 7, i, parents[i]
     # One parent per node but the root, which has none: a walk from the root never revisits a node,
     # so it reaches all k nodes unless some lie on a cycle cut off from the root.
-    return (0, 0, 0) if _preorder(left, right, root, order) == k else (8, 0, 0)
+    return (0, 0, 0) if _preorder(left, right, root, order, size) == k else (8, 0, 0)
 
 
 @njit(cache=True)
-def _preorder(left, right, root, order):
+def _preorder(left, right, root, order, size):
     """Write the nodes below ``root`` into ``order`` depth-first, parent, left subtree, right subtree
-    (every subtree a contiguous range); returns how many were written (at most len(order)).
+    (every subtree a contiguous range), and into ``size`` the number of nodes of each one's subtree;
+    returns how many were written (at most len(order); ``size`` is valid only if all were).
 
     Builders that number nodes that way already (the divisive ones) get the identity, found without
     a walk: a node's left child follows it and its right child follows the left subtree.
     """
     k = left.shape[0]
     if root == 0:
-        size = np.ones(k, np.int32)
         preorder = True
         for node in range(k - 1, -1, -1):
             a = left[node]
             if a < 0:
+                size[node] = 1
                 continue
             b = right[node]
             if a != node + 1 or b != a + size[a] or b + size[b] > k:
@@ -279,6 +304,13 @@ def _preorder(left, right, root, order):
             stack[top] = right[node]
             stack[top + 1] = left[node]
             top += 2
+    if count == k:
+        for node in range(k):
+            size[node] = 1
+        for t in range(k - 1, -1, -1):
+            node = order[t]
+            if left[node] >= 0:
+                size[node] = 1 + size[left[node]] + size[right[node]]
     return count
 
 
@@ -292,18 +324,14 @@ def _uniform(seed, a, b):
 
 
 @njit(cache=True)
-def _fill_tasks(order, left, right, cut):
-    """Split the preorder ``order`` into subtrees of at most ``cut`` nodes and the nodes above them.
+def _fill_tasks(order, size, cut):
+    """Split the preorder ``order`` into subtrees of at most ``cut`` nodes and the nodes above them
+    (``size`` : each node's subtree size).
 
     Returns ``(tasks, tops)``: (M, 2) int64 ranges ``[s, e)`` of ``order``, each a whole subtree, and
     the positions in ``order`` of the remaining nodes (parents before children).
     """
     k = order.shape[0]
-    size = np.ones(k, np.int64)
-    for t in range(k - 1, -1, -1):
-        node = order[t]
-        if left[node] >= 0:
-            size[node] = 1 + size[left[node]] + size[right[node]]
     # Room for any tree (untouched memory costs nothing): a growing array's slice copy would cost
     # numba seconds of compilation for its shape-mismatch error path.
     tasks = np.empty((k, 2), np.int64)
@@ -420,10 +448,10 @@ def _fill_cones(nlo, nhi, s, e, axis, cos_half):
         cos_half[node] = cc
 
 
-def _fill_nodes(order, left, right, light, position, normal, intensity, luminance, oriented, seed):
+def _fill_nodes(order, size, left, right, light, position, normal, intensity, luminance, oriented, seed):
     """``(bbox_min, bbox_max, cone_axis, cone_cos, intensity, rep)`` of every node, bottom-up.
 
-    ``order`` : the nodes in preorder (:func:`_check_tree`). Subtrees of about k / (8 threads) nodes
+    ``order``, ``size`` : the nodes in preorder and their subtree sizes (:func:`_check_tree`). Subtrees of about k / (8 threads) nodes
     (:func:`_fill_tasks`) are filled on all numba threads (Python threads; the kernels release the
     GIL, and a ``parallel=True`` kernel would add seconds of compilation), then the nodes above
     them, then every cone. Each node's values depend on its children's only, so the result does not
@@ -439,7 +467,7 @@ def _fill_nodes(order, left, right, light, position, normal, intensity, luminanc
     nhi = np.empty((k, 3))
     first = np.empty(k, np.int32)
     threads = numba.get_num_threads() if k >= _PARALLEL_MIN else 1
-    tasks, tops = _fill_tasks(order, left, right, max(k // (8 * threads), _FILL_BLOCK))
+    tasks, tops = _fill_tasks(order, size, max(k // (8 * threads), _FILL_BLOCK))
     args = (left, right, light, position, normal, intensity, luminance, seed, bbox_min, bbox_max, nlo, nhi,
             node_intensity, lum, first, rep)
     groups = _balance(tasks[:, 1] - tasks[:, 0], threads)
@@ -481,7 +509,7 @@ def build_tree(lights: LightSet, builder: str = "agglomerative", metric: str = "
     """
     builder_fn = get_builder(builder)
     metric_obj: Metric = as_metric(get_metric(metric), metric)
-    normal = _check_lights(lights)
+    normal, luminance = _check_lights(lights)
     if c is None:
         c = default_c(lights)
     c = float(c)
@@ -492,11 +520,10 @@ def build_tree(lights: LightSet, builder: str = "agglomerative", metric: str = "
     # Oriented lights' normals come back from _check_lights rescaled to unit length: the
     # box-of-normals cone assumes unit vectors, and normals within _UNIT_TOL of unit length (e.g.
     # read back from float32) would otherwise stray outside their cones by up to ~sqrt(_UNIT_TOL).
-    luminance = lights.luminance
     out = builder_fn(lights.position, normal, luminance, lights.type, metric_obj, c, seed)
-    left, right, light, root, order = _check_topology(builder, out, n)
+    left, right, light, root, order, size = _check_topology(builder, out, n)
     bbox_min, bbox_max, cone_axis, cone_cos, node_intensity, rep = _fill_nodes(
-        order, left, right, light, lights.position, normal, lights.intensity, luminance, lights.type == "oriented",
+        order, size, left, right, light, lights.position, normal, lights.intensity, luminance, lights.type == "oriented",
         np.uint64(seed % 2**64))
     meta = dict(builder=builder, metric=metric_obj.name, c=c, seed=seed, type=lights.type, n_lights=n)
     return LightTree(left, right, light, bbox_min, bbox_max, cone_axis, cone_cos, node_intensity, rep, root, meta)
