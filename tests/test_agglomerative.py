@@ -1,6 +1,9 @@
 """The fast agglomerative builders and their kd-tree (Walter, Bala, Kulkarni, Pingali 2008).
 
 Properties:
+- the kd-tree keeps each leaf's active clusters in its first slots, its cluster data equal to the
+  clusters' boxes, and its node bounds valid for every cluster under each node, through merges and
+  rebuilds;
 - findBestMatch through the kd-tree returns the minimum of the metric over the active clusters,
   as a brute-force scan computes it, for every metric and light type, before and after merges
   (with and without kd rebuilds), at any leaf size and far from the origin;
@@ -25,7 +28,8 @@ from lightcuts.lights.lightset import LightSet
 from lightcuts.trees.agglomerative import agglomerative, agglomerative_stats
 from lightcuts.trees.build import build_tree
 from lightcuts.trees.cones import cone_from_box
-from lightcuts.trees.kdtree import best_matches_after_merges
+from lightcuts.trees.kdtree import (N_EMIN, N_HMIN, N_IMIN, N_LMAX, NE_MIN, NH_MIN, NL_MAX, S_HI, S_I, S_LO, S_NHI,
+                                    S_NLO, best_matches_after_merges, kd_merge, kd_new)
 from lightcuts.trees.metrics import Metric, metric_eval
 from lightcuts.trees.registry import get_metric
 from lightcuts.trees.validate import validate_tree
@@ -113,6 +117,62 @@ def check_against_brute_force(position, normal, luminance, light_type, metric_na
         assert value == ref, (a, b, value, ref)
         # The returned cluster is a minimiser: the same one unless several tie.
         assert table[a][b] == ref, (a, b)
+
+
+# ------------------------------------------------------------------------------------ kd tree
+
+def check_kd_tree(kd, clusters):
+    """The kd-tree's storage and bounds against the active clusters (dicts of clusters_after)."""
+    slot_f, slot_id, slot_of, slot_leaf, node_s, node_n, node_cnt, leaf_start, info = kd[:9]
+    lo, hi, nlo, nhi, inten = clusters
+    first_leaf = int(info[0])
+    seen = []
+    # The arrays keep the size of the first build; a rebuild over fewer clusters uses a prefix.
+    for j in range(first_leaf + 1):
+        leaf = first_leaf + j
+        s0, s1, cnt = int(leaf_start[j]), int(leaf_start[j + 1]), int(node_cnt[leaf])
+        # Active clusters first, then empty slots: a search scans exactly the first cnt slots.
+        assert (slot_id[s0:s0 + cnt] >= 0).all() and (slot_id[s0 + cnt:s1] == -1).all(), leaf
+        for s in range(s0, s0 + cnt):
+            c = int(slot_id[s])
+            seen.append(c)
+            assert slot_of[c] == s and slot_leaf[s] == leaf
+            np.testing.assert_array_equal(slot_f[s, S_LO:S_LO + 3], lo[c])
+            np.testing.assert_array_equal(slot_f[s, S_HI:S_HI + 3], hi[c])
+            np.testing.assert_array_equal(slot_f[s, S_NLO:S_NLO + 3], nlo[c])
+            np.testing.assert_array_equal(slot_f[s, S_NHI:S_NHI + 3], nhi[c])
+            assert slot_f[s, S_I] == inten[c]
+            # Every node on the path bounds the cluster (float32 values widen exactly to float64).
+            k = leaf
+            while True:
+                row = node_s[k].astype(np.float64)
+                nrow = node_n[k].astype(np.float64)
+                assert (hi[c] >= row[N_HMIN:N_HMIN + 3]).all() and (lo[c] <= row[N_LMAX:N_LMAX + 3]).all()
+                assert (hi[c] - lo[c] >= row[N_EMIN:N_EMIN + 3]).all() and inten[c] >= row[N_IMIN]
+                assert (nhi[c] >= nrow[NH_MIN:NH_MIN + 3]).all() and (nlo[c] <= nrow[NL_MAX:NL_MAX + 3]).all()
+                assert (nhi[c] - nlo[c] >= nrow[NE_MIN:NE_MIN + 3]).all()
+                if k == 0:
+                    break
+                k = (k - 1) // 2
+    assert sorted(seen) == sorted(inten) and int(info[3]) == len(seen)
+    for k in range(first_leaf):
+        assert node_cnt[k] == node_cnt[2 * k + 1] + node_cnt[2 * k + 2]
+
+
+def test_kd_tree_storage_and_bounds_through_merges_and_rebuilds():
+    rng = np.random.default_rng(11)
+    n = 300
+    position, normal, luminance = random_arrays(n, "oriented", rng, face_normals=True)
+    merges = random_merges(n, n - 2, rng)
+    order = rng.permutation(n)
+    kd, work = kd_new(position, normal, luminance, order, 4)
+    # Cluster i < n is light order[i].
+    lights = position[order], normal[order], luminance[order]
+    check_kd_tree(kd, clusters_after(*lights, merges[:0]))
+    for m, (a, b) in enumerate(merges):
+        kd_merge(kd, work, a, b, n + m)
+        if m % 37 == 0 or m >= n - 5:
+            check_kd_tree(kd, clusters_after(*lights, merges[:m + 1]))
 
 
 # ------------------------------------------------------------------------------------ kd search

@@ -39,9 +39,14 @@ match.
 
 Locality: indirect VPLs arrive in path order, scattered in space, so per-cluster arrays indexed by
 light id would be read at random. The kernel runs on the lights sorted along a Morton (Z-order)
-curve of their positions (:func:`morton_order`), where nearby clusters have nearby ids, and the
-leaves are relabelled afterwards (about 5% faster at 200K Cornell VPLs, 12% at 800K). Only the ids
-among tied clusters depend on the order, as with any relabelling.
+curve of their positions (:func:`morton_order`), where nearby clusters have nearby ids (about 5%
+faster at 200K Cornell VPLs, 12% at 800K); the kd-tree reads the lights through that permutation and
+the kernel relabels the leaves to light ids at the end. Only the ids among tied clusters depend on
+the order, as with any relabelling.
+
+Work (200K Cornell VPLs, oriented, walter2008): about 3.3 kd-tree searches per merge (1 for each new
+cluster, 1 per chain step, 1.44 chain steps per merge, minus the cached answers); the searches are
+about 85% of the time, the kd-tree (re)builds about 10%, the Morton order about 1%.
 
 Node ids of the returned topology: leaves 0..N-1 are lights 0..N-1, merge m makes node N + m, the
 root is 2N - 2. Both run single-threaded (the merge loop is sequential; the paper's heap version
@@ -55,7 +60,7 @@ import numpy as np
 from numba import njit
 
 from lightcuts.errors import LightcutsError
-from lightcuts.trees.kdtree import LEAF_SIZE, kd_best_match, kd_merge, kd_new, position_tol
+from lightcuts.trees.kdtree import LEAF_SIZE, kd_best_match, kd_merge, kd_new
 from lightcuts.trees.metrics import Metric
 from lightcuts.trees.registry import BUILDERS
 
@@ -112,10 +117,22 @@ def _heap_pop(hd, ha, hb, size):
 
 
 @njit(cache=True)
-def _agglomerate(position, normal, luminance, metric_id, has_cone, use_cone, c, tol, start, leafsize, heap):
+def _leaves_to_lights(left, right, order):
+    """Relabel leaf children (cluster i < N) as light ``order[i]``."""
+    n = order.shape[0]
+    for m in range(n, left.shape[0]):
+        if left[m] < n:
+            left[m] = order[left[m]]
+        if right[m] < n:
+            right[m] = order[right[m]]
+
+
+@njit(cache=True)
+def _agglomerate(position, normal, luminance, order, metric_id, has_cone, use_cone, c, start, leafsize, heap):
     """Both builders in one kernel (one compilation): Fig. 4 (``heap`` False) or Fig. 3 (True).
 
-    Returns ``(left, right, light, stats)``, the root being node 2N-2; ``stats`` = [kd-tree
+    Cluster i < N is light ``order[i]`` (:func:`morton_order`); ``start`` is a cluster id. Returns
+    ``(left, right, light, stats)`` with leaves as light ids, the root being node 2N-2; ``stats`` = [kd-tree
     searches, chain steps without a merge (locally ordered) or stale heap entries skipped (heap),
     best matches answered from the cache (locally ordered)].
     """
@@ -130,7 +147,7 @@ def _agglomerate(position, normal, luminance, metric_id, has_cone, use_cone, c, 
     stats = np.zeros(3, np.int64)
     if n == 1:
         return left, right, light, stats
-    kd, work = kd_new(position, normal, luminance, leafsize)
+    kd, work = kd_new(position, normal, luminance, order, leafsize)
     slot_of = kd[2]
     # Typed ids: a literal -1 would make numba compile a second specialisation of kd_best_match.
     none = np.int64(-1)
@@ -142,7 +159,7 @@ def _agglomerate(position, normal, luminance, metric_id, has_cone, use_cone, c, 
         cached_d = np.empty(k)
         cached_lb = np.empty(k)
         a = np.int64(start)
-        b, d_ab, lb = kd_best_match(kd, a, none, np.inf, metric_id, has_cone, use_cone, c, tol)
+        b, d_ab, lb = kd_best_match(kd, a, none, np.inf, metric_id, has_cone, use_cone, c)
         stats[0] += 1
         cached[a] = b
         cached_d[a] = d_ab
@@ -153,7 +170,7 @@ def _agglomerate(position, normal, luminance, metric_id, has_cone, use_cone, c, 
                 d_bc = cached_d[b]
                 stats[2] += 1
             else:
-                cc, d_bc, lb = kd_best_match(kd, b, a, d_ab, metric_id, has_cone, use_cone, c, tol)
+                cc, d_bc, lb = kd_best_match(kd, b, a, d_ab, metric_id, has_cone, use_cone, c)
                 stats[0] += 1
                 cached[b] = cc
                 cached_d[b] = d_bc
@@ -166,7 +183,7 @@ def _agglomerate(position, normal, luminance, metric_id, has_cone, use_cone, c, 
                 a = new
                 new += 1
                 if new < k:
-                    b, d_ab, lb = kd_best_match(kd, a, none, np.inf, metric_id, has_cone, use_cone, c, tol)
+                    b, d_ab, lb = kd_best_match(kd, a, none, np.inf, metric_id, has_cone, use_cone, c)
                     stats[0] += 1
                     cached[a] = b
                     cached_d[a] = d_ab
@@ -176,6 +193,7 @@ def _agglomerate(position, normal, luminance, metric_id, has_cone, use_cone, c, 
                 b = cc
                 d_ab = d_bc
                 stats[1] += 1
+        _leaves_to_lights(left, right, order)
         return left, right, light, stats
     # Live entries never exceed the active clusters: each pop pushes at most one entry.
     hd = np.empty(n)
@@ -187,7 +205,7 @@ def _agglomerate(position, normal, luminance, metric_id, has_cone, use_cone, c, 
     slot_id = kd[1]
     for s in range(n):
         i = np.int64(slot_id[s])
-        b, d, lb = kd_best_match(kd, i, none, np.inf, metric_id, has_cone, use_cone, c, tol)
+        b, d, lb = kd_best_match(kd, i, none, np.inf, metric_id, has_cone, use_cone, c)
         size = _heap_push(hd, ha, hb, size, d, i, b)
     stats[0] += n
     while new < k:
@@ -196,7 +214,7 @@ def _agglomerate(position, normal, luminance, metric_id, has_cone, use_cone, c, 
             stats[1] += 1
             continue
         if slot_of[b] < 0:
-            b, d, lb = kd_best_match(kd, a, none, np.inf, metric_id, has_cone, use_cone, c, tol)
+            b, d, lb = kd_best_match(kd, a, none, np.inf, metric_id, has_cone, use_cone, c)
             stats[0] += 1
             size = _heap_push(hd, ha, hb, size, d, a, b)
             continue
@@ -204,10 +222,11 @@ def _agglomerate(position, normal, luminance, metric_id, has_cone, use_cone, c, 
         right[new] = b
         kd_merge(kd, work, a, b, new)
         if new < k - 1:
-            b, d, lb = kd_best_match(kd, new, none, np.inf, metric_id, has_cone, use_cone, c, tol)
+            b, d, lb = kd_best_match(kd, new, none, np.inf, metric_id, has_cone, use_cone, c)
             stats[0] += 1
             size = _heap_push(hd, ha, hb, size, d, new, b)
         new += 1
+    _leaves_to_lights(left, right, order)
     return left, right, light, stats
 
 
@@ -223,33 +242,64 @@ def _arguments(position, normal, luminance, light_type: str, metric: Metric, c: 
     if len(position) == 0:
         raise LightcutsError(f"builder {name!r}: no lights")
     has_cone = light_type == "oriented"
-    return (position, normal, luminance, int(metric.id), has_cone, bool(has_cone and metric.uses_cone), float(c),
-            position_tol(position))
+    return position, normal, luminance, int(metric.id), has_cone, bool(has_cone and metric.uses_cone), float(c)
 
 
+@njit(cache=True)
 def _spread3(v):
-    """Spread the low 21 bits of each uint64 in v to every third bit (Morton code interleave)."""
-    v = v & np.uint64(0x1FFFFF)
-    for shift, mask in ((32, 0x1F00000000FFFF), (16, 0x1F0000FF0000FF), (8, 0x100F00F00F00F00F),
-                        (4, 0x10C30C30C30C30C3), (2, 0x1249249249249249)):
-        v = (v | (v << np.uint64(shift))) & np.uint64(mask)
-    return v
+    """Spread the low 21 bits of v (uint64) to every third bit (Morton code interleave)."""
+    v &= np.uint64(0x1FFFFF)
+    v = (v | (v << np.uint64(32))) & np.uint64(0x1F00000000FFFF)
+    v = (v | (v << np.uint64(16))) & np.uint64(0x1F0000FF0000FF)
+    v = (v | (v << np.uint64(8))) & np.uint64(0x100F00F00F00F00F)
+    v = (v | (v << np.uint64(4))) & np.uint64(0x10C30C30C30C30C3)
+    return (v | (v << np.uint64(2))) & np.uint64(0x1249249249249249)
+
+
+@njit(cache=True)
+def _morton_keys(position, bits, index_bits):
+    """(N,) uint64 keys: the Morton code of each position quantised to ``bits`` bits per axis over the
+    bounding box, shifted left by ``index_bits``, or-ed with the light's index (unique keys)."""
+    n = position.shape[0]
+    lo = np.empty(3)
+    scale = np.empty(3)
+    top = np.float64((1 << bits) - 1)
+    for t in range(3):
+        vmin = np.inf
+        vmax = -np.inf
+        for i in range(n):
+            vmin = min(vmin, position[i, t])
+            vmax = max(vmax, position[i, t])
+        lo[t] = vmin
+        scale[t] = top / (vmax - vmin) if vmax > vmin else 0.0
+    keys = np.empty(n, np.uint64)
+    for i in range(n):
+        code = np.uint64(0)
+        for t in range(3):
+            x = (position[i, t] - lo[t]) * scale[t]
+            # Non-finite coordinates (refused before any tree is built) must not make the cast undefined.
+            if not x >= 0.0:
+                x = 0.0
+            code |= _spread3(np.uint64(min(x, top))) << np.uint64(2 - t)
+        keys[i] = (code << np.uint64(index_bits)) | np.uint64(i)
+    return keys
 
 
 def morton_order(position: np.ndarray) -> np.ndarray:
     """(N,) int64 permutation sorting the lights along a Z-order (Morton) curve of their positions.
 
-    position : (N, 3) float64, quantised to 21 bits per axis over its bounding box (stable among equal
-    codes). Lights that arrive in path order are scattered in space; in this order, clusters near each
-    other in space have nearby ids, so the per-cluster arrays the builders index stay in cache.
+    position : (N, 3) float64, quantised over its bounding box to as many bits per axis (at most 21) as
+    fit in 64-bit keys beside the light index, which breaks ties (the order of the sort is unique, so
+    any sort algorithm gives it). Lights that arrive in path order are scattered in space; in this
+    order, clusters near each other in space have nearby ids, so the per-cluster arrays the builders
+    index stay in cache.
     """
-    lo = position.min(axis=0)
-    extent = position.max(axis=0) - lo
-    scale = np.where(extent > 0, (2.0 ** 21 - 1) / np.where(extent > 0, extent, 1.0), 0.0)
-    # Non-finite coordinates (refused before any tree is built) must not make the cast undefined.
-    q = np.nan_to_num(np.clip((position - lo) * scale, 0, 2.0 ** 21 - 1)).astype(np.uint64)
-    code = (_spread3(q[:, 0]) << np.uint64(2)) | (_spread3(q[:, 1]) << np.uint64(1)) | _spread3(q[:, 2])
-    return np.argsort(code, kind="stable")
+    n = len(position)
+    index_bits = max(1, (n - 1).bit_length())
+    bits = min(21, (64 - index_bits) // 3)
+    keys = _morton_keys(np.ascontiguousarray(position, np.float64), bits, index_bits)
+    keys.sort()
+    return (keys & np.uint64((1 << index_bits) - 1)).astype(np.int64)
 
 
 def agglomerative_stats(position, normal, luminance, light_type: str, metric: Metric, c: float, seed: int,
@@ -267,15 +317,10 @@ def agglomerative_stats(position, normal, luminance, light_type: str, metric: Me
                       "agglomerative")
     n = len(args[0])
     start = int(np.random.default_rng(seed).integers(n))
-    # Build over the lights in Morton order (cluster i = light order[i]), then relabel the leaves.
+    # Build over the lights in Morton order (cluster i = light order[i]); leaves come back as lights.
     order = morton_order(args[0])
-    rank = np.empty(n, np.int64)
-    rank[order] = np.arange(n)
-    left, right, light, st = _agglomerate(args[0][order], args[1][order], args[2][order], *args[3:],
-                                          int(rank[start]), int(leafsize), bool(heap))
-    for child in (left, right):
-        leaf = (child >= 0) & (child < n)
-        child[leaf] = order[child[leaf]]
+    left, right, light, st = _agglomerate(*args[:3], order, *args[3:], int(np.flatnonzero(order == start)[0]),
+                                          int(leafsize), bool(heap))
     stats = {"searches": int(st[0]), ("stale" if heap else "steps"): int(st[1])}
     if not heap:
         stats["cached"] = int(st[2])

@@ -9,45 +9,50 @@ Storage (flat arrays; a "slot" holds one active cluster)
 ---------------------------------------------------------
 - ``slot_f`` (S, 16) float64, rows aligned to 64 bytes: the cluster's spatial box ``lo, hi``
   (columns 0-5) and scalar intensity (6) in the first cache line -- all that the first test of a
-  pair reads -- then its box of unit normals ``nlo, nhi`` (7-12). A kd leaf's slots are contiguous.
-- ``slot_id`` (S,) int32: the cluster in the slot, -1 once it is merged away.
+  pair reads -- then its box of unit normals ``nlo, nhi`` (7-12).
+- ``slot_id`` (S,) int32: the cluster in the slot, -1 for an empty slot.
 - ``slot_of`` (2N-1,) int32: cluster id -> slot, -1 when the cluster is not active.
 - ``slot_leaf`` (S,) int32: the kd leaf (node index) that owns the slot.
-- ``node_s`` (M, 16) float32, one 64-byte line per node: box of the cluster centres ``cmin, cmax``
-  (0-5), minimum extents ``emin`` (6-8), minimum intensity ``imin`` (9), split value (10) and
-  axis (11), which only order the search.
-- ``node_n`` (M, 9) float32: box of the normal-box centres ``ncmin, ncmax`` (0-5) and minimum
-  normal-box extents ``nemin`` (6-8); read only when the spatial part of a bound does not prune.
+- ``node_s`` (M, 16) float32, one 64-byte line per node, per axis: the smallest upper end ``hmin``
+  (0-2) and the largest lower end ``lmax`` (3-5) of the clusters' boxes, their smallest extent
+  ``emin`` (6-8); the smallest intensity ``imin`` (9); split value (10) and axis (11), which only
+  order the search.
+- ``node_n`` (M, 9) float32: the same three for the boxes of normals, ``nhmin, nlmax, nemin``; read
+  only when the spatial part of a bound does not prune.
 - ``node_cnt`` (M,) int32: active clusters under the node (0: skip it).
-- ``leaf_start`` (L+1,) int64: leaf ``first_leaf + j`` owns slots ``leaf_start[j] .. [j+1]-1``.
+- ``leaf_start`` (L+1,) int64: leaf ``first_leaf + j`` owns slots ``leaf_start[j] .. [j+1]-1``, of
+  which the first ``node_cnt[first_leaf + j]`` hold its active clusters (a search never meets an
+  empty slot).
 - ``info`` (4,) int64: ``first_leaf``, clusters at the last (re)build, leaf size, active clusters.
-- ``stack_node``, ``stack_lb``: the search's traversal stack.
+- ``stack_node``, ``stack_lb``: the search's traversal stack; ``dbuf`` (leaf size,): one leaf's
+  metric values without the cone term.
 
 Node values are float32 rounded outwards (minima down, maxima up), so they stay valid bounds at
-half the memory traffic; the search is bound by cache misses on node and slot rows.
+half the memory traffic; the search is bound by the latency of node and slot rows.
 
 The tree is implicit and balanced (children of node k are 2k+1 and 2k+2, all leaves at one depth),
-split at the median of the axis along which the centres spread most. Merging A and B into C writes
-C into the slot of whichever of A, B has its centre nearer C's and empties the other slot; the boxes
-of centres on C's path grow to contain C's centres, and the counts on the emptied slot's path drop
-by one. Minimum extents and intensities need no update: C's extents, normal extents and intensity
-are >= those of the child whose slot it takes, and a removed cluster only makes a minimum loose,
-never wrong. When the active clusters fall to half of those at the last build, the tree is rebuilt
-over them (amortised O(N log N) in all), which restores tight bounds.
+split at the median of the centres along the longest side of the node's cell. Merging A and B into
+C writes C into the slot of whichever of A, B has its centre nearer C's; the other slot is filled
+by the last active slot of its leaf, and the counts on its path drop by one. No bound needs an
+update: C's upper ends, extents and intensity are >= those of the cluster whose slot it takes, its
+lower ends <=, so ``hmin``, ``emin``, ``imin`` (minima) and ``lmax`` (a maximum) still hold, as
+they do when a cluster is removed (they only become loose). When the active clusters fall to half
+of those at the last build, the tree is rebuilt over them (amortised O(N log N) in all), which
+restores tight bounds.
 
 Lower bound of d(A u B) over the clusters B under a node
 --------------------------------------------------------
-Per axis, with A's centre ca and extent ea, B's centre cb and extent eb, the union's extent is
-``U = max(hiA, hiB) - min(loA, loB) >= max(ea, eb, |ca - cb| + (ea + eb) / 2)``: it covers both
-intervals, whose far ends are ``|ca - cb| + (ea + eb)/2`` apart. The right side grows with
-|ca - cb| and with eb; over the node ``|ca - cb| >= sep`` (the distance from ca to the node's
-interval of centres) and ``eb >= emin``, so
+Per axis, with A's box ``[loA, hiA]`` (extent ea) and B's ``[lo, hi]``, the union's extent is
+``U = max(hiA, hi) - min(loA, lo)``. Over the node ``hi >= hmin``, ``lo <= lmax`` and
+``hi - lo >= emin``, so
 
-    U >= max(ea, emin, sep + (ea + emin) / 2).
+    U >= max(ea, emin, max(hiA, hmin) - min(loA, lmax)).
 
-Every built-in metric grows with each extent (walter: L^2 = sum of squared extents; surface area:
-2(ex ey + ey ez + ez ex) of non-negative extents) and with the intensity (I_A + I_B >= I_A + imin),
-so the metric of a box with these extents bounds it from below.
+(This is at least as tight as bounding by a box of centres and a minimum extent, which implies
+``hi >= cmin + emin/2`` and ``lo <= cmax - emin/2``, and unlike that box it needs no update when
+clusters merge.) Every built-in metric grows with each extent (walter: L^2 = sum of squared
+extents; surface area: 2(ex ey + ey ez + ez ex) of non-negative extents) and with the intensity
+(I_A + I_B >= I_A + imin), so the metric of a box with these extents bounds it from below.
 
 The cone term: the box-of-normals cone is not monotone under union, so no cluster's cone is used.
 Instead: the union's box of normals has on each axis an extent Dk bounded below exactly as U above;
@@ -59,12 +64,18 @@ own normal-box spread, gives ``d_lb(A u B) <= d(A u B)``, which grows under unio
 it to prove a cached best match still best (:func:`kd_best_match`).
 
 Rounding: the metric is a composition of monotone floating-point operations, so a bound holds as
-computed when its inputs do. The extents ea, emin are the floating-point numbers of the exact
-evaluation (or rounded down); only the term with centres carries rounding, lowered by ``tol`` (16
-ulps of the largest coordinate; 16 ulps of 1 for normals). The cone cosine is raised by
-``_COS_SLACK``, which covers :func:`~lightcuts.trees.cones.cone_from_box`'s rounding. Bounds may be
-loose, never too tight: the search returns exactly the minimum of the metric as computed
-(``tests/test_agglomerative.py`` checks it against a brute-force scan).
+computed when its inputs do. The bound's extents are computed as the pair's own are, from ends
+that are <= (upper) and >= (lower) the pair's, and rounding is monotone, so each is <= the pair's
+extent as computed; float32 node values are rounded outwards. The cone cosine is raised by
+``_COS_SLACK``, which covers :func:`~lightcuts.trees.cones.cone_from_box`'s rounding and that of
+the spread. Bounds may be loose, never too tight: the search returns exactly the minimum of the
+metric as computed (``tests/test_agglomerative.py`` checks it against a brute-force scan).
+
+Cost (200K Cornell-box VPLs, oriented, walter2008): about 30 node bounds and 4 leaves (about 50
+active slots) per search; bounds are loose mostly because the neighbourhood of A meets several
+leaves, not because of their form (the box-of-ends form above opens 4% fewer nodes than boxes of
+centres). Leaves of 32 clusters, scanned in two passes (the metric without its cone term for the
+whole leaf, then the survivors), cost less than deeper trees of smaller leaves.
 """
 
 from __future__ import annotations
@@ -80,19 +91,19 @@ S_LO, S_HI, S_I, S_NLO, S_NHI = 0, 3, 6, 7, 10
 SLOT_DATA = 13
 SLOT_WIDTH = 16
 # Spatial node row columns (float32, one cache line).
-N_CMIN, N_CMAX, N_EMIN, N_IMIN, N_SPLIT, N_AXIS = 0, 3, 6, 9, 10, 11
+N_HMIN, N_LMAX, N_EMIN, N_IMIN, N_SPLIT, N_AXIS = 0, 3, 6, 9, 10, 11
 NODE_WIDTH = 16
 # Normal node row columns (float32).
-NC_MIN, NC_MAX, NE_MIN = 0, 3, 6
+NH_MIN, NL_MAX, NE_MIN = 0, 3, 6
 NORMAL_WIDTH = 9
 # info entries.
 I_FIRST_LEAF, I_BUILT, I_LEAFSIZE, I_ACTIVE = 0, 1, 2, 3
 
-# Default clusters per kd leaf (4 to 16 measure within noise of each other here).
-LEAF_SIZE = 8
+# Default clusters per kd leaf: with dense leaves and the two-pass scan, 32 builds 200K and 800K Cornell VPLs
+# about 15% faster than 8 and 5-10% faster than 16; 48 and 64 are within noise at 200K, slower at 800K.
+LEAF_SIZE = 32
 # Traversal stack entries: at most two per level, and the tree has at most ~40 levels.
 _STACK = 128
-_EPS = 2.0 ** -52
 # Added to the cone-cosine bound: exceeds cone_from_box's rounding except for boxes whose centre is
 # within ~1e-7 of the origin, whose cones are near the full sphere anyway.
 _COS_SLACK = 1e-9
@@ -185,30 +196,28 @@ def _select(keys, idx, axis, lo, hi, kth):
 def _leaf_bounds(slot_f, s0, s1, node_s, node_n, k):
     """Exact bounds of the slots s0..s1-1 (all active) into node k, rounded outwards to float32."""
     for t in range(3):
-        cmin = np.inf
-        cmax = -np.inf
+        hmin = np.inf
+        lmax = -np.inf
         emin = np.inf
-        ncmin = np.inf
-        ncmax = -np.inf
+        nhmin = np.inf
+        nlmax = -np.inf
         nemin = np.inf
         for s in range(s0, s1):
             lo = slot_f[s, S_LO + t]
             hi = slot_f[s, S_HI + t]
-            c = 0.5 * (lo + hi)
-            cmin = min(cmin, c)
-            cmax = max(cmax, c)
+            hmin = min(hmin, hi)
+            lmax = max(lmax, lo)
             emin = min(emin, hi - lo)
             lo = slot_f[s, S_NLO + t]
             hi = slot_f[s, S_NHI + t]
-            c = 0.5 * (lo + hi)
-            ncmin = min(ncmin, c)
-            ncmax = max(ncmax, c)
+            nhmin = min(nhmin, hi)
+            nlmax = max(nlmax, lo)
             nemin = min(nemin, hi - lo)
-        node_s[k, N_CMIN + t] = _down32(cmin)
-        node_s[k, N_CMAX + t] = _up32(cmax)
+        node_s[k, N_HMIN + t] = _down32(hmin)
+        node_s[k, N_LMAX + t] = _up32(lmax)
         node_s[k, N_EMIN + t] = _down32(emin)
-        node_n[k, NC_MIN + t] = _down32(ncmin)
-        node_n[k, NC_MAX + t] = _up32(ncmax)
+        node_n[k, NH_MIN + t] = _down32(nhmin)
+        node_n[k, NL_MAX + t] = _up32(nlmax)
         node_n[k, NE_MIN + t] = _down32(nemin)
     imin = np.inf
     for s in range(s0, s1):
@@ -318,36 +327,38 @@ def kd_build(kd, keys, idx, trow):
         a = 2 * k + 1
         b = a + 1
         for t in range(3):
-            node_s[k, N_CMIN + t] = min(node_s[a, N_CMIN + t], node_s[b, N_CMIN + t])
-            node_s[k, N_CMAX + t] = max(node_s[a, N_CMAX + t], node_s[b, N_CMAX + t])
+            node_s[k, N_HMIN + t] = min(node_s[a, N_HMIN + t], node_s[b, N_HMIN + t])
+            node_s[k, N_LMAX + t] = max(node_s[a, N_LMAX + t], node_s[b, N_LMAX + t])
             node_s[k, N_EMIN + t] = min(node_s[a, N_EMIN + t], node_s[b, N_EMIN + t])
-            node_n[k, NC_MIN + t] = min(node_n[a, NC_MIN + t], node_n[b, NC_MIN + t])
-            node_n[k, NC_MAX + t] = max(node_n[a, NC_MAX + t], node_n[b, NC_MAX + t])
+            node_n[k, NH_MIN + t] = min(node_n[a, NH_MIN + t], node_n[b, NH_MIN + t])
+            node_n[k, NL_MAX + t] = max(node_n[a, NL_MAX + t], node_n[b, NL_MAX + t])
             node_n[k, NE_MIN + t] = min(node_n[a, NE_MIN + t], node_n[b, NE_MIN + t])
         node_s[k, N_IMIN] = min(node_s[a, N_IMIN], node_s[b, N_IMIN])
         node_cnt[k] = node_cnt[a] + node_cnt[b]
 
 
 @njit(cache=True)
-def kd_new(position, normal, luminance, leafsize):
-    """The kd-tree over N single-light clusters (cluster i = light i), and its build workspace.
+def kd_new(position, normal, luminance, order, leafsize):
+    """The kd-tree over N single-light clusters (cluster i = light ``order[i]``), and its build workspace.
 
-    position, normal : (N, 3) float64; luminance : (N,) float64; leafsize : int >= 2
+    position, normal : (N, 3) float64; luminance : (N,) float64; order : (N,) int64 permutation;
+    leafsize : int >= 2
     Returns ``(kd, work)``: ``kd = (slot_f, slot_id, slot_of, slot_leaf, node_s, node_n, node_cnt,
-    leaf_start, info, stack_node, stack_lb)`` as described in the module docstring (``slot_of`` has
-    room for the 2N-1 cluster ids of a full tree), ``work = (keys, idx, trow)``.
+    leaf_start, info, stack_node, stack_lb, dbuf)`` as described in the module docstring
+    (``slot_of`` has room for the 2N-1 cluster ids of a full tree), ``work = (keys, idx, trow)``.
     """
     n = position.shape[0]
     slot_f = _rows_f64(n, SLOT_WIDTH)
     slot_id = np.empty(n, np.int32)
     slot_of = np.full(max(2 * n - 1, 1), -1, np.int32)
     for i in range(n):
+        j = order[i]
         for t in range(3):
-            slot_f[i, S_LO + t] = position[i, t]
-            slot_f[i, S_HI + t] = position[i, t]
-            slot_f[i, S_NLO + t] = normal[i, t]
-            slot_f[i, S_NHI + t] = normal[i, t]
-        slot_f[i, S_I] = luminance[i]
+            slot_f[i, S_LO + t] = position[j, t]
+            slot_f[i, S_HI + t] = position[j, t]
+            slot_f[i, S_NLO + t] = normal[j, t]
+            slot_f[i, S_NHI + t] = normal[j, t]
+        slot_f[i, S_I] = luminance[j]
         slot_id[i] = i
     depth = _depth(n, leafsize)
     n_nodes = (2 << depth) - 1
@@ -356,7 +367,7 @@ def kd_new(position, normal, luminance, leafsize):
     info[I_LEAFSIZE] = leafsize
     kd = (slot_f, slot_id, slot_of, np.empty(n, np.int32), _rows_f32(n_nodes, NODE_WIDTH),
           _rows_f32(n_nodes, NORMAL_WIDTH), np.zeros(n_nodes, np.int32), np.zeros((1 << depth) + 1, np.int64), info,
-          np.empty(_STACK, np.int64), np.empty(_STACK))
+          np.empty(_STACK, np.int64), np.empty(_STACK), np.empty(leafsize))
     work = (np.empty((3, n)), np.empty(n, np.int32), np.empty(SLOT_WIDTH))
     kd_build(kd, work[0], work[1], work[2])
     return kd, work
@@ -371,25 +382,20 @@ def _cone_cos_bound(spread):
 
 
 @njit(cache=True)
-def _union_extent(ca, ea, cmin, cmax, emin, tol):
-    """Lower bound of one axis' extent of A u B over B with centre in [cmin, cmax], extent >= emin."""
-    ca = np.float64(ca)
-    cmin = np.float64(cmin)
-    cmax = np.float64(cmax)
-    emin = np.float64(emin)
-    sep = max(cmin - ca, ca - cmax, 0.0)
-    return max(ea, emin, sep + 0.5 * (ea + emin) - tol)
+def _union_extent(qlo, qhi, hmin, lmax, emin):
+    """Lower bound of one axis' extent of A u B, A = [qlo, qhi], over B = [lo, hi] with hi >= hmin,
+    lo <= lmax, hi - lo >= emin (float32 bounds, widened to float64 exactly)."""
+    return max(qhi - qlo, np.float64(emin), max(qhi, np.float64(hmin)) - min(qlo, np.float64(lmax)))
 
 
 @njit(cache=True)
-def kd_best_match(kd, a, hint, hint_d, metric_id, has_cone, use_cone, c, tol):
+def kd_best_match(kd, a, hint, hint_d, metric_id, has_cone, use_cone, c):
     """findBestMatch(A): the active cluster B != A minimising d(A u B).
 
     kd : the tree (:func:`kd_new`); a : active cluster id; hint, hint_d : an active cluster known
         to the caller and d(A u hint) (-1, inf for none), which starts the bound; metric_id,
         has_cone : as for :func:`~lightcuts.trees.metrics.metric_eval`; use_cone : compute the
-        union's cone (oriented lights and a metric with a cone term); c : cone-term scale;
-        tol : rounding allowance of the spatial bound (:func:`position_tol`).
+        union's cone (oriented lights and a metric with a cone term); c : cone-term scale.
     Returns ``(b, d, others_lb)``; ``(-1, inf, inf)`` if A is the only active cluster.
 
     d is the metric as the builders define it: union box, box-of-normals cone of the union, summed
@@ -405,7 +411,7 @@ def kd_best_match(kd, a, hint, hint_d, metric_id, has_cone, use_cone, c, tol):
     The loop calls only scalar helpers: in numba an array passed to a helper costs two atomic
     reference-count updates per call, which was 40% of the search time.
     """
-    slot_f, slot_id, slot_of, slot_leaf, node_s, node_n, node_cnt, leaf_start, info, stack_node, stack_lb = kd
+    slot_f, slot_id, slot_of, slot_leaf, node_s, node_n, node_cnt, leaf_start, info, stack_node, stack_lb, dbuf = kd
     first_leaf = info[I_FIRST_LEAF]
     sa = slot_of[a]
     qlo0 = slot_f[sa, S_LO]
@@ -424,16 +430,6 @@ def kd_best_match(kd, a, hint, hint_d, metric_id, has_cone, use_cone, c, tol):
     qc0 = 0.5 * (qlo0 + qhi0)
     qc1 = 0.5 * (qlo1 + qhi1)
     qc2 = 0.5 * (qlo2 + qhi2)
-    qe0 = qhi0 - qlo0
-    qe1 = qhi1 - qlo1
-    qe2 = qhi2 - qlo2
-    qnc0 = 0.5 * (qnlo0 + qnhi0)
-    qnc1 = 0.5 * (qnlo1 + qnhi1)
-    qnc2 = 0.5 * (qnlo2 + qnhi2)
-    qne0 = qnhi0 - qnlo0
-    qne1 = qnhi1 - qnlo1
-    qne2 = qnhi2 - qnlo2
-    ntol = 16.0 * _EPS
     best = hint
     best_d = hint_d if hint >= 0 else np.inf
     # The hint's d_lb is unknown: should it be displaced, others_lb becomes -inf (no cache proof).
@@ -453,20 +449,18 @@ def kd_best_match(kd, a, hint, hint_d, metric_id, has_cone, use_cone, c, tol):
             k = stack_node[sp]
             lb = stack_lb[sp]
             if lb < 0.0:
-                u0 = _union_extent(qc0, qe0, node_s[k, N_CMIN], node_s[k, N_CMAX], node_s[k, N_EMIN], tol)
-                u1 = _union_extent(qc1, qe1, node_s[k, N_CMIN + 1], node_s[k, N_CMAX + 1], node_s[k, N_EMIN + 1],
-                                   tol)
-                u2 = _union_extent(qc2, qe2, node_s[k, N_CMIN + 2], node_s[k, N_CMAX + 2], node_s[k, N_EMIN + 2],
-                                   tol)
+                u0 = _union_extent(qlo0, qhi0, node_s[k, N_HMIN], node_s[k, N_LMAX], node_s[k, N_EMIN])
+                u1 = _union_extent(qlo1, qhi1, node_s[k, N_HMIN + 1], node_s[k, N_LMAX + 1], node_s[k, N_EMIN + 1])
+                u2 = _union_extent(qlo2, qhi2, node_s[k, N_HMIN + 2], node_s[k, N_LMAX + 2], node_s[k, N_EMIN + 2])
                 intensity = qi + np.float64(node_s[k, N_IMIN])
                 lb = metric_eval(metric_id, intensity, 0.0, 0.0, 0.0, u0, u1, u2, 1.0, has_cone, c)
                 if use_cone and lb < best_d:
                     spread = max(
-                        _union_extent(qnc0, qne0, node_n[k, NC_MIN], node_n[k, NC_MAX], node_n[k, NE_MIN], ntol),
-                        _union_extent(qnc1, qne1, node_n[k, NC_MIN + 1], node_n[k, NC_MAX + 1], node_n[k, NE_MIN + 1],
-                                      ntol),
-                        _union_extent(qnc2, qne2, node_n[k, NC_MIN + 2], node_n[k, NC_MAX + 2], node_n[k, NE_MIN + 2],
-                                      ntol))
+                        _union_extent(qnlo0, qnhi0, node_n[k, NH_MIN], node_n[k, NL_MAX], node_n[k, NE_MIN]),
+                        _union_extent(qnlo1, qnhi1, node_n[k, NH_MIN + 1], node_n[k, NL_MAX + 1],
+                                      node_n[k, NE_MIN + 1]),
+                        _union_extent(qnlo2, qnhi2, node_n[k, NH_MIN + 2], node_n[k, NL_MAX + 2],
+                                      node_n[k, NE_MIN + 2]))
                     lb = metric_eval(metric_id, intensity, 0.0, 0.0, 0.0, u0, u1, u2, _cone_cos_bound(spread),
                                      has_cone, c)
             if lb >= best_d:
@@ -487,23 +481,35 @@ def kd_best_match(kd, a, hint, hint_d, metric_id, has_cone, use_cone, c, tol):
                     stack_lb[sp] = -1.0
                     sp += 1
                 continue
-            j = k - first_leaf
-            for s in range(leaf_start[j], leaf_start[j + 1]):
-                b = slot_id[s]
-                if b < 0 or b == a:
+            # Two passes over the leaf: first the metric without its cone term for every slot (no
+            # branches, so the loads of all rows overlap), then only the slots it does not prune.
+            # That metric bounds d and d_lb from below; a pruned slot's d_lb >= best d, so it needs
+            # no place in others_lb.
+            s0 = leaf_start[k - first_leaf]
+            cnt = node_cnt[k]
+            for i in range(cnt):
+                s = s0 + i
+                dbuf[i] = metric_eval(metric_id, qi + slot_f[s, S_I], min(qlo0, slot_f[s, S_LO]),
+                                      min(qlo1, slot_f[s, S_LO + 1]), min(qlo2, slot_f[s, S_LO + 2]),
+                                      max(qhi0, slot_f[s, S_HI]), max(qhi1, slot_f[s, S_HI + 1]),
+                                      max(qhi2, slot_f[s, S_HI + 2]), 1.0, has_cone, c)
+            for i in range(cnt):
+                d = dbuf[i]
+                if d > best_d:
                     continue
-                lo0 = min(qlo0, slot_f[s, S_LO])
-                lo1 = min(qlo1, slot_f[s, S_LO + 1])
-                lo2 = min(qlo2, slot_f[s, S_LO + 2])
-                hi0 = max(qhi0, slot_f[s, S_HI])
-                hi1 = max(qhi1, slot_f[s, S_HI + 1])
-                hi2 = max(qhi2, slot_f[s, S_HI + 2])
-                intensity = qi + slot_f[s, S_I]
-                # Without its cone term the metric bounds d and d_lb from below: if that exceeds
-                # the best d, the pair is out and its cone is never computed.
-                d = metric_eval(metric_id, intensity, lo0, lo1, lo2, hi0, hi1, hi2, 1.0, has_cone, c)
+                s = s0 + i
+                b = slot_id[s]
+                if b == a:
+                    continue
                 d_lb = d
-                if use_cone and d <= best_d:
+                if use_cone:
+                    lo0 = min(qlo0, slot_f[s, S_LO])
+                    lo1 = min(qlo1, slot_f[s, S_LO + 1])
+                    lo2 = min(qlo2, slot_f[s, S_LO + 2])
+                    hi0 = max(qhi0, slot_f[s, S_HI])
+                    hi1 = max(qhi1, slot_f[s, S_HI + 1])
+                    hi2 = max(qhi2, slot_f[s, S_HI + 2])
+                    intensity = qi + slot_f[s, S_I]
                     nlo0 = min(qnlo0, slot_f[s, S_NLO])
                     nlo1 = min(qnlo1, slot_f[s, S_NLO + 1])
                     nlo2 = min(qnlo2, slot_f[s, S_NLO + 2])
@@ -513,8 +519,11 @@ def kd_best_match(kd, a, hint, hint_d, metric_id, has_cone, use_cone, c, tol):
                     spread = max(nhi0 - nlo0, nhi1 - nlo1, nhi2 - nlo2)
                     d_lb = metric_eval(metric_id, intensity, lo0, lo1, lo2, hi0, hi1, hi2, _cone_cos_bound(spread),
                                        has_cone, c)
-                    ax, ay, az, cos_half = cone_from_box(nlo0, nlo1, nlo2, nhi0, nhi1, nhi2)
-                    d = metric_eval(metric_id, intensity, lo0, lo1, lo2, hi0, hi1, hi2, cos_half, has_cone, c)
+                    # d >= d_lb: past the best d already, the cone itself is not needed.
+                    d = d_lb
+                    if d_lb <= best_d:
+                        ax, ay, az, cos_half = cone_from_box(nlo0, nlo1, nlo2, nhi0, nhi1, nhi2)
+                        d = metric_eval(metric_id, intensity, lo0, lo1, lo2, hi0, hi1, hi2, cos_half, has_cone, c)
                 if d < best_d or (d == best_d and b < best):
                     if best >= 0:
                         others_lb = min(others_lb, best_lb)
@@ -559,54 +568,34 @@ def kd_merge(kd, work, a, b, new_id):
         slot_f[keep, S_NHI + t] = max(slot_f[sa, S_NHI + t], slot_f[sb, S_NHI + t])
     slot_f[keep, S_I] = slot_f[sa, S_I] + slot_f[sb, S_I]
     slot_id[keep] = new_id
-    slot_id[drop] = -1
     slot_of[a] = -1
     slot_of[b] = -1
     slot_of[new_id] = keep
     info[I_ACTIVE] -= 1
-    k = slot_leaf[drop]
+    # Keep the leaf's active slots in front: its last active row fills the emptied slot, so a
+    # search scans active slots only.
+    leaf = slot_leaf[drop]
+    last = leaf_start[leaf - info[I_FIRST_LEAF]] + node_cnt[leaf] - 1
+    if last != drop:
+        for t in range(SLOT_DATA):
+            slot_f[drop, t] = slot_f[last, t]
+        slot_id[drop] = slot_id[last]
+        slot_of[slot_id[drop]] = drop
+    slot_id[last] = -1
+    k = leaf
     while True:
         node_cnt[k] -= 1
         if k == 0:
-            break
-        k = (k - 1) >> 1
-    # Grow the boxes of centres up the kept slot's path; a node that already contains the new
-    # centres has ancestors that do too (a parent's box contains its children's).
-    k = slot_leaf[keep]
-    while True:
-        grown = False
-        for t in range(3):
-            cc = 0.5 * (slot_f[keep, S_LO + t] + slot_f[keep, S_HI + t])
-            if cc < node_s[k, N_CMIN + t]:
-                node_s[k, N_CMIN + t] = _down32(cc)
-                grown = True
-            if cc > node_s[k, N_CMAX + t]:
-                node_s[k, N_CMAX + t] = _up32(cc)
-                grown = True
-            nc = 0.5 * (slot_f[keep, S_NLO + t] + slot_f[keep, S_NHI + t])
-            if nc < node_n[k, NC_MIN + t]:
-                node_n[k, NC_MIN + t] = _down32(nc)
-                grown = True
-            if nc > node_n[k, NC_MAX + t]:
-                node_n[k, NC_MAX + t] = _up32(nc)
-                grown = True
-        if not grown or k == 0:
             break
         k = (k - 1) >> 1
     if 2 * info[I_ACTIVE] <= info[I_BUILT] and info[I_ACTIVE] > 1:
         kd_build(kd, work[0], work[1], work[2])
 
 
-def position_tol(position: np.ndarray) -> float:
-    """Rounding allowance of the spatial bound: 16 ulps of the largest coordinate magnitude."""
-    scale = float(np.abs(position).max()) if position.size else 0.0
-    return 16.0 * _EPS * scale
-
-
 @njit(cache=True)
-def _best_matches_after(position, normal, luminance, merges, metric_id, has_cone, use_cone, c, tol, leafsize):
+def _best_matches_after(position, normal, luminance, merges, metric_id, has_cone, use_cone, c, leafsize):
     n = position.shape[0]
-    kd, work = kd_new(position, normal, luminance, leafsize)
+    kd, work = kd_new(position, normal, luminance, np.arange(position.shape[0]), leafsize)
     for m in range(merges.shape[0]):
         kd_merge(kd, work, merges[m, 0], merges[m, 1], n + m)
     active = np.flatnonzero(kd[2] >= 0)
@@ -614,7 +603,7 @@ def _best_matches_after(position, normal, luminance, merges, metric_id, has_cone
     best_d = np.empty(active.shape[0])
     others_lb = np.empty(active.shape[0])
     for i in range(active.shape[0]):
-        b, d, lb = kd_best_match(kd, active[i], np.int64(-1), np.inf, metric_id, has_cone, use_cone, c, tol)
+        b, d, lb = kd_best_match(kd, active[i], np.int64(-1), np.inf, metric_id, has_cone, use_cone, c)
         best[i] = b
         best_d[i] = d
         others_lb[i] = lb
@@ -637,4 +626,4 @@ def best_matches_after_merges(position, normal, luminance, has_cone: bool, metri
     merges = np.zeros((0, 2), np.int64) if merges is None else np.ascontiguousarray(merges, np.int64)
     return _best_matches_after(position, np.ascontiguousarray(normal, np.float64),
                                np.ascontiguousarray(luminance, np.float64), merges, int(metric.id), bool(has_cone),
-                               bool(has_cone and metric.uses_cone), float(c), position_tol(position), int(leafsize))
+                               bool(has_cone and metric.uses_cone), float(c), int(leafsize))
