@@ -11,8 +11,8 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from lightcuts.render.bounds import (DIRECTIONAL, OMNI, ORIENTED, box_distance2, cluster_error_bound,
-                                     cone_cos_bound, max_cos_in_box)
+from lightcuts.render.bounds import (BOUND_SLACK, DIRECTIONAL, OMNI, ORIENTED, box_distance2, cluster_error_bound,
+                                     cone_cos_bound, geometric_bound, material_bound, max_cos_in_box)
 from lightcuts.render.shading import facing_normal, reflect, unshadowed_contribution
 
 SETTINGS = settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -122,6 +122,25 @@ def test_bound_holds_for_directional_clusters(seed):
 @given(seeds, st.sampled_from([OMNI, ORIENTED]), st.floats(1e-4, 4.0))
 def test_clamped_bound_holds_for_clamped_contributions(seed, light_type, min_distance):
     check_cluster(seed, light_type, min_distance ** 2)
+
+
+@SETTINGS
+@given(seeds, st.sampled_from([OMNI, ORIENTED, DIRECTIONAL]), st.sampled_from([0.0, 0.01, 1.0]))
+def test_fused_bound_is_the_product_of_its_terms(seed, light_type, clamp_d2):
+    """cluster_error_bound evaluates I * M_ub * G_ub as ratios with one division: the same value as
+    the product of material_bound and geometric_bound, up to rounding."""
+    rng = np.random.default_rng(seed)
+    x, n, r = random_receiver(rng)
+    albedo, specular, exponent = random_material(rng)
+    lo, hi, axis, cos_half, _, _ = random_cluster(rng, light_type, x)
+    i = rng.uniform(0, 10, 3)
+    fused = np.array(cluster_error_bound(*x, *n, *r, *albedo, *specular, exponent, light_type, *lo, *hi, *axis,
+                                         cos_half, *i, clamp_d2))
+    m = np.array(material_bound(*x, *n, *r, *albedo, *specular, exponent, *lo, *hi, light_type == DIRECTIONAL))
+    g = geometric_bound(*x, light_type, *lo, *hi, *axis, cos_half, clamp_d2)
+    with np.errstate(invalid="ignore"):
+        product = np.where((i * m > 0) & (g > 0), i * m * g * BOUND_SLACK, 0.0)
+    np.testing.assert_allclose(fused, product, rtol=1e-12, atol=0)
 
 
 @SETTINGS

@@ -318,3 +318,6 @@ def test_forest_packs_every_tree_consistently():
                 stack += [f.node_k[k, NK_LEFT], f.node_k[k, NK_RIGHT]]
     assert sorted(seen) == list(range(n + 5))
     assert f.node_k[:, NK_ALL_INDIRECT].any() and not f.node_k[:, NK_ALL_INDIRECT].all()
+    # The kernel's rows (64 bytes) each sit on one cache line.
+    assert f.node_b.ctypes.data % 64 == 0 and f.node_b.strides == (64, 4)
+    assert f.light_f.ctypes.data % 64 == 0 and f.light_f.strides == (64, 8)
