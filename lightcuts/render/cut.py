@@ -55,8 +55,10 @@ Scratch (one set per thread, reused across receivers), ``cap = max(max_cut, n_ro
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from numba import njit
 
@@ -80,6 +82,8 @@ NK_LEFT, NK_RIGHT, NK_REP, NK_ALL_INDIRECT, NK_WIDTH = 0, 1, 2, 3, 4
 # axis, cos (widened); summed RGB intensity; left child (-1 at a leaf; the right child is left + 1),
 # representative (global light id), flags = 2 * type code + all-indirect.
 NB_LO, NB_HI, NB_AXIS, NB_COS, NB_I, NB_LEFT, NB_REP, NB_FLAGS, NB_WIDTH = 0, 3, 6, 9, 10, 13, 14, 15, 16
+# Below this many rows build_forest's kernels run on one thread (thread start-up would cost more).
+_PARALLEL_MIN = 20000
 #: Extra half-angle (radians) given to a node's cone in node_b: covers the float32 rounding of its axis.
 CONE_WIDEN = 1e-6
 # Columns of a light's row (light_f, (L, 8) float64): position (directional: unit direction towards
@@ -111,14 +115,6 @@ class Forest:
     node_bi: np.ndarray
 
 
-def _round32(a: np.ndarray, down: bool) -> np.ndarray:
-    """float64 -> float32 rounded towards -inf (``down``) or +inf, so a box only grows."""
-    r = a.astype(np.float32)
-    wrong = r.astype(np.float64) > a if down else r.astype(np.float64) < a
-    r[wrong] = np.nextafter(r[wrong], np.float32(-np.inf if down else np.inf))
-    return r
-
-
 def cache_aligned_zeros(shape: tuple[int, int], dtype) -> np.ndarray:
     """Zeros whose first row starts on a 64-byte cache line: with 64-byte rows, a row is one line
     (numpy's own allocations are only 16-byte aligned, so every row would straddle two lines)."""
@@ -142,17 +138,41 @@ def pack_nodes(node_f: np.ndarray, node_k: np.ndarray) -> tuple[np.ndarray, np.n
         raise LightcutsError(f"trees: {k} nodes exceed the kernel's int32 node ids")
     node_b = cache_aligned_zeros((k, NB_WIDTH), np.float32)
     node_bi = node_b.view(np.int32)
-    node_b[:, NB_LO:NB_LO + 3] = _round32(node_f[:, NF_LO:NF_LO + 3], down=True)
-    node_b[:, NB_HI:NB_HI + 3] = _round32(node_f[:, NF_HI:NF_HI + 3], down=False)
-    node_b[:, NB_AXIS:NB_AXIS + 3] = node_f[:, NF_AXIS:NF_AXIS + 3]
-    beta = np.arccos(np.clip(node_f[:, NF_COS], -1.0, 1.0)) + CONE_WIDEN
-    full = (node_f[:, NF_COS] <= -1.0) | (beta >= np.pi)
-    node_b[:, NB_COS] = np.where(full, np.float32(-1.0), _round32(np.cos(np.minimum(beta, np.pi)), down=True))
-    node_b[:, NB_I:NB_I + 3] = node_f[:, NF_I:NF_I + 3]
-    node_bi[:, NB_LEFT] = node_k[:, NK_LEFT]
-    node_bi[:, NB_REP] = node_k[:, NK_REP]
-    node_bi[:, NB_FLAGS] = 2 * node_f[:, NF_TYPE].astype(np.int32) + (node_k[:, NK_ALL_INDIRECT] > 0)
+    on_threads(_pack, k, np.ascontiguousarray(node_f, np.float64), np.ascontiguousarray(node_k, np.int64), node_b,
+               node_bi)
     return node_b, node_bi
+
+
+@njit(cache=True)
+def _round32(x, down):
+    """float64 -> float32 rounded towards -inf (``down``) or +inf, so a box only grows."""
+    f = np.float32(x)
+    if down and f > x:
+        f = np.nextafter(f, np.float32(-np.inf))
+    elif not down and f < x:
+        f = np.nextafter(f, np.float32(np.inf))
+    return f
+
+
+@njit(cache=True, nogil=True)
+def _pack(node_f, node_k, node_b, node_bi, s, e):
+    """:func:`pack_nodes`' loop over rows s..e-1: node_b and node_bi are two views of the same (K, 16)
+    records."""
+    for k in range(s, e):
+        for t in range(3):
+            node_b[k, NB_LO + t] = _round32(node_f[k, NF_LO + t], True)
+            node_b[k, NB_HI + t] = _round32(node_f[k, NF_HI + t], False)
+            node_b[k, NB_AXIS + t] = np.float32(node_f[k, NF_AXIS + t])
+            node_b[k, NB_I + t] = np.float32(node_f[k, NF_I + t])
+        c = node_f[k, NF_COS]
+        beta = np.arccos(min(1.0, max(-1.0, c))) + CONE_WIDEN
+        if c <= -1.0 or beta >= np.pi:
+            node_b[k, NB_COS] = np.float32(-1.0)
+        else:
+            node_b[k, NB_COS] = _round32(np.cos(beta), True)
+        node_bi[k, NB_LEFT] = node_k[k, NK_LEFT]
+        node_bi[k, NB_REP] = node_k[k, NK_REP]
+        node_bi[k, NB_FLAGS] = 2 * np.int32(node_f[k, NF_TYPE]) + (node_k[k, NK_ALL_INDIRECT] > 0)
 
 
 def _level_order(tree: LightTree) -> list[np.ndarray]:
@@ -166,7 +186,8 @@ def _level_order(tree: LightTree) -> list[np.ndarray]:
     return levels
 
 
-def _check_tree(typ: str, tree: LightTree, n: int) -> None:
+def _check_tree(typ: str, tree: LightTree, n: int) -> np.ndarray:
+    """LightcutsError if the tree does not fit n lights; else its node ids in level order."""
     k = 2 * n - 1
     for key in ("left", "right", "light", "rep", "cone_cos"):
         if getattr(tree, key).shape != (k,):
@@ -182,8 +203,10 @@ def _check_tree(typ: str, tree: LightTree, n: int) -> None:
         raise LightcutsError(f"trees.{typ}: light or representative ids outside [0, {n})")
     if np.any(tree.left >= k) or np.any(tree.right >= k) or np.any((tree.left < 0) != (tree.right < 0)):
         raise LightcutsError(f"trees.{typ}: child ids are not valid node ids")
-    if sum(len(level) for level in _level_order(tree)) != k:
+    order = np.concatenate(_level_order(tree)).astype(np.int64)
+    if len(order) != k:
         raise LightcutsError(f"trees.{typ}: {k} nodes expected below the root for {n} lights")
+    return order
 
 
 def _check_lights(typ: str, ls) -> None:
@@ -196,6 +219,55 @@ def _check_lights(typ: str, ls) -> None:
             raise LightcutsError(f"lights.{typ}: {key} has non-finite values")
     if np.any(ls.intensity < 0):
         raise LightcutsError(f"lights.{typ}: intensity has negative values")
+
+
+@njit(cache=True, nogil=True)
+def _flatten_rows(order, new_id, left, right, light, rep, bbox_min, bbox_max, cone_axis, cone_cos, intensity,
+                  indirect, type_code, node_base, light_base, node_f, node_k, s, e):
+    """Rows s..e-1 of one tree's part of the forest: node_f (K, 16), node_k (K, 4), row t for the
+    tree's node ``order[t]`` (level order; ``new_id`` its inverse), with global node ids
+    (``node_base`` + row) and light ids (``light_base`` + light). The all-indirect flag is set at
+    the leaves only (:func:`_flatten_flags` does the rest)."""
+    for t in range(s, e):
+        old = order[t]
+        for d in range(3):
+            node_f[t, NF_LO + d] = bbox_min[old, d]
+            node_f[t, NF_HI + d] = bbox_max[old, d]
+            node_f[t, NF_AXIS + d] = cone_axis[old, d]
+            node_f[t, NF_I + d] = intensity[old, d]
+        node_f[t, NF_COS] = cone_cos[old]
+        node_f[t, NF_TYPE] = type_code
+        node_k[t, NK_REP] = rep[old] + light_base
+        if left[old] < 0:
+            node_k[t, NK_LEFT] = -1
+            node_k[t, NK_RIGHT] = -1
+            node_k[t, NK_ALL_INDIRECT] = 1 if indirect[light[old]] else 0
+        else:
+            node_k[t, NK_LEFT] = new_id[left[old]] + node_base
+            node_k[t, NK_RIGHT] = new_id[right[old]] + node_base
+
+
+@njit(cache=True)
+def _flatten_flags(node_k, node_base):
+    """A cluster is all-indirect if both children are: set from the last row up, as in level order
+    children come after their parent."""
+    for t in range(node_k.shape[0] - 1, -1, -1):
+        a = node_k[t, NK_LEFT]
+        if a >= 0:
+            node_k[t, NK_ALL_INDIRECT] = (node_k[a - node_base, NK_ALL_INDIRECT]
+                                          & node_k[node_k[t, NK_RIGHT] - node_base, NK_ALL_INDIRECT])
+
+
+def on_threads(kernel, n: int, *args) -> None:
+    """``kernel(*args, s, e)`` over [0, n) cut into one range per numba thread, on Python threads
+    (the kernel must be ``nogil``; a ``parallel=True`` kernel would add seconds of compilation)."""
+    threads = numba.get_num_threads() if n >= _PARALLEL_MIN else 1
+    cuts = np.linspace(0, n, threads + 1).astype(np.int64)
+    if threads == 1:
+        kernel(*args, 0, n)
+        return
+    with ThreadPoolExecutor(threads) as pool:
+        list(pool.map(lambda t: kernel(*args, cuts[t], cuts[t + 1]), range(threads)))
 
 
 def build_forest(lights: dict, trees: dict | None) -> Forest:
@@ -221,48 +293,31 @@ def build_forest(lights: dict, trees: dict | None) -> Forest:
         light_i[rows] = ls.intensity
         base += len(ls)
 
-    node_f = []
-    node_k = []
     roots = []
+    flat = []
     if trees is not None:
-        light_base = 0
-        node_base = 0
         for typ, ls in sets:
             tree = trees.get(typ)
             if tree is None:
                 raise LightcutsError(f"trees: no tree for the {len(ls)} {typ} lights")
-            _check_tree(typ, tree, len(ls))
-            levels = _level_order(tree)
-            order = np.concatenate(levels)           # new id -> old id
-            new_id = np.empty(len(order), np.int64)   # old id -> new id
-            new_id[order] = np.arange(len(order))
-            f = np.zeros((len(order), NF_WIDTH))
-            f[:, NF_LO:NF_LO + 3] = tree.bbox_min[order]
-            f[:, NF_HI:NF_HI + 3] = tree.bbox_max[order]
-            f[:, NF_AXIS:NF_AXIS + 3] = tree.cone_axis[order]
-            f[:, NF_COS] = tree.cone_cos[order]
-            f[:, NF_I:NF_I + 3] = tree.intensity[order]
-            f[:, NF_TYPE] = TYPE_CODES[typ]
-            k = np.full((len(order), NK_WIDTH), -1, np.int64)
-            inner = tree.left[order] >= 0
-            k[inner, NK_LEFT] = new_id[tree.left[order][inner]] + node_base
-            k[inner, NK_RIGHT] = new_id[tree.right[order][inner]] + node_base
-            k[:, NK_REP] = tree.rep[order].astype(np.int64) + light_base
-            # Bottom-up over the levels: a cluster is all-indirect if both children are.
-            flag = np.zeros(len(order), bool)
-            flag[~inner] = ls.indirect[tree.light[order][~inner]]
-            for level in reversed(levels):
-                ids = new_id[level]
-                ids = ids[inner[ids]]
-                flag[ids] = flag[k[ids, NK_LEFT] - node_base] & flag[k[ids, NK_RIGHT] - node_base]
-            k[:, NK_ALL_INDIRECT] = flag
-            node_f.append(f)
-            node_k.append(k)
-            roots.append(node_base)  # the root is first in level order
-            light_base += len(ls)
-            node_base += len(order)
-    node_f = np.ascontiguousarray(np.concatenate(node_f)) if node_f else np.zeros((0, NF_WIDTH))
-    node_k = np.ascontiguousarray(np.concatenate(node_k)) if node_k else np.zeros((0, NK_WIDTH), np.int64)
+            flat.append((typ, ls, tree, _check_tree(typ, tree, len(ls))))
+    total = sum(len(order) for *_, order in flat)
+    node_f = np.zeros((total, NF_WIDTH))
+    node_k = np.empty((total, NK_WIDTH), np.int64)
+    light_base = 0
+    node_base = 0
+    for typ, ls, tree, order in flat:
+        rows = slice(node_base, node_base + len(order))
+        new_id = np.empty(len(order), np.int64)
+        new_id[order] = np.arange(len(order))
+        on_threads(_flatten_rows, len(order), order, new_id, tree.left, tree.right, tree.light, tree.rep,
+                   tree.bbox_min, tree.bbox_max, tree.cone_axis, tree.cone_cos, tree.intensity,
+                   np.ascontiguousarray(ls.indirect, np.bool_), TYPE_CODES[typ], node_base, light_base, node_f[rows],
+                   node_k[rows])
+        _flatten_flags(node_k[rows], node_base)
+        roots.append(node_base)  # the root is first in level order
+        light_base += len(ls)
+        node_base += len(order)
     node_b, node_bi = pack_nodes(node_f, node_k)
     return Forest(light_f=light_f, light_i=light_i, node_f=node_f, node_k=node_k, roots=np.array(roots, np.int64),
                   n_lights=n_lights, node_b=node_b, node_bi=node_bi)
