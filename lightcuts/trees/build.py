@@ -360,8 +360,8 @@ def _fill_ranges(order, ranges, left, right, light, position, normal, intensity,
     ``order[s:e]`` for each row ``(s, e)`` of ``ranges`` (M, 2), last row first; each range's
     children are in it or already done (``order`` lists parents first).
 
-    The nodes of a range are taken in blocks of _FILL_BLOCK from the end: in each block first the leaves
-    (gathers from the light arrays), then the internal nodes (merges). A node's children come after
+    The nodes of a range are taken in blocks of _FILL_BLOCK from the end: in each block first the
+    leaves (gathers from the light arrays), then the internal nodes (merges). A node's children come after
     it in ``order``, so they are done in an earlier block or earlier in its own. Passes over one
     kind of node at a time avoid a branch per node (leaves and internal nodes alternate
     unpredictably) and let the CPU overlap the leaves' independent cache misses; blocks keep the
@@ -451,11 +451,11 @@ def _fill_cones(nlo, nhi, s, e, axis, cos_half):
 def _fill_nodes(order, size, left, right, light, position, normal, intensity, luminance, oriented, seed):
     """``(bbox_min, bbox_max, cone_axis, cone_cos, intensity, rep)`` of every node, bottom-up.
 
-    ``order``, ``size`` : the nodes in preorder and their subtree sizes (:func:`_check_tree`). Subtrees of about k / (8 threads) nodes
-    (:func:`_fill_tasks`) are filled on all numba threads (Python threads; the kernels release the
-    GIL, and a ``parallel=True`` kernel would add seconds of compilation), then the nodes above
-    them, then every cone. Each node's values depend on its children's only, so the result does not
-    depend on the thread count.
+    ``order``, ``size`` : the nodes in preorder and their subtree sizes (:func:`_check_tree`).
+    Subtrees of about k / (8 threads) nodes (:func:`_fill_tasks`) are filled on all numba threads
+    (Python threads; the kernels release the GIL, and a ``parallel=True`` kernel would add seconds
+    of compilation), then the nodes above them, then every cone. Each node's values depend on its
+    children's only, so the result does not depend on the thread count.
     """
     k = left.shape[0]
     bbox_min, bbox_max, cone_axis, node_intensity = (np.empty((k, 3)) for _ in range(4))
@@ -523,7 +523,7 @@ def build_tree(lights: LightSet, builder: str = "agglomerative", metric: str = "
     out = builder_fn(lights.position, normal, luminance, lights.type, metric_obj, c, seed)
     left, right, light, root, order, size = _check_topology(builder, out, n)
     bbox_min, bbox_max, cone_axis, cone_cos, node_intensity, rep = _fill_nodes(
-        order, size, left, right, light, lights.position, normal, lights.intensity, luminance, lights.type == "oriented",
-        np.uint64(seed % 2**64))
+        order, size, left, right, light, lights.position, normal, lights.intensity, luminance,
+        lights.type == "oriented", np.uint64(seed % 2**64))
     meta = dict(builder=builder, metric=metric_obj.name, c=c, seed=seed, type=lights.type, n_lights=n)
     return LightTree(left, right, light, bbox_min, bbox_max, cone_axis, cone_cos, node_intensity, rep, root, meta)
