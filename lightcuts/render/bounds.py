@@ -202,12 +202,8 @@ def material_bound(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, 
     Returns (M_r, M_g, M_b), zeros when the whole box is behind the surface.
     """
     fn = receiver_frames(n0, n1, n2, r0, r1, r2)
-    f0, f1, f2, m, q = _material_ratio(x0, x1, x2, n0, n1, n2, r0, r1, r2, fn, rd0, rd1, rd2, rs0, rs1, rs2,
-                                       exponent, lo0, lo1, lo2, hi0, hi1, hi2, directional)
-    if m <= 0.0:
-        return 0.0, 0.0, 0.0
-    cos_n = min(1.0, m / q)
-    return f0 * cos_n, f1 * cos_n, f2 * cos_n
+    return material_bound_framed(x0, x1, x2, n0, n1, n2, r0, r1, r2, fn, rd0, rd1, rd2, rs0, rs1, rs2, exponent,
+                                 lo0, lo1, lo2, hi0, hi1, hi2, directional)
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
