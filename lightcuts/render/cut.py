@@ -55,16 +55,15 @@ Scratch (one set per thread, reused across receivers), ``cap = max(max_cut, n_ro
 
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 from numba import njit
 
 from lightcuts.accel.embree_kernels import ray_occluded
 from lightcuts.errors import LightcutsError
 from lightcuts.lights.lightset import LIGHT_TYPES, LUMINANCE, LightSet
+from lightcuts.parallel import on_threads
 from lightcuts.render.bounds import DIRECTIONAL, OMNI, ORIENTED, cluster_error_bound_framed, receiver_frames
 from lightcuts.render.shading import light_geometry, material_term
 from lightcuts.trees.tree import LightTree
@@ -138,7 +137,7 @@ def pack_nodes(node_f: np.ndarray, node_k: np.ndarray) -> tuple[np.ndarray, np.n
         raise LightcutsError(f"trees: {k} nodes exceed the kernel's int32 node ids")
     node_b = cache_aligned_zeros((k, NB_WIDTH), np.float32)
     node_bi = node_b.view(np.int32)
-    on_threads(_pack, k, np.ascontiguousarray(node_f, np.float64), np.ascontiguousarray(node_k, np.int64), node_b,
+    on_threads(_pack, k, _PARALLEL_MIN, np.ascontiguousarray(node_f, np.float64), np.ascontiguousarray(node_k, np.int64), node_b,
                node_bi)
     return node_b, node_bi
 
@@ -258,18 +257,6 @@ def _flatten_flags(node_k, node_base):
                                           & node_k[node_k[t, NK_RIGHT] - node_base, NK_ALL_INDIRECT])
 
 
-def on_threads(kernel, n: int, *args) -> None:
-    """``kernel(*args, s, e)`` over [0, n) cut into one range per numba thread, on Python threads
-    (the kernel must be ``nogil``; a ``parallel=True`` kernel would add seconds of compilation)."""
-    threads = numba.get_num_threads() if n >= _PARALLEL_MIN else 1
-    cuts = np.linspace(0, n, threads + 1).astype(np.int64)
-    if threads == 1:
-        kernel(*args, 0, n)
-        return
-    with ThreadPoolExecutor(threads) as pool:
-        list(pool.map(lambda t: kernel(*args, cuts[t], cuts[t + 1]), range(threads)))
-
-
 def build_forest(lights: dict, trees: dict | None) -> Forest:
     """Flatten light sets (and, for lightcuts, their trees) by type; LightcutsError on a mismatch.
 
@@ -310,7 +297,7 @@ def build_forest(lights: dict, trees: dict | None) -> Forest:
         rows = slice(node_base, node_base + len(order))
         new_id = np.empty(len(order), np.int64)
         new_id[order] = np.arange(len(order))
-        on_threads(_flatten_rows, len(order), order, new_id, tree.left, tree.right, tree.light, tree.rep,
+        on_threads(_flatten_rows, len(order), _PARALLEL_MIN, order, new_id, tree.left, tree.right, tree.light, tree.rep,
                    tree.bbox_min, tree.bbox_max, tree.cone_axis, tree.cone_cos, tree.intensity,
                    np.ascontiguousarray(ls.indirect, np.bool_), TYPE_CODES[typ], node_base, light_base, node_f[rows],
                    node_k[rows])

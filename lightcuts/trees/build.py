@@ -23,13 +23,13 @@ from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
 
-import numba
 import numpy as np
 from numba import njit
 
 from lightcuts.errors import LightcutsError
 from lightcuts.hashing import mix64 as _mix64
 from lightcuts.lights.lightset import LUMINANCE, LightSet
+from lightcuts.parallel import balance, on_threads, threads_for
 from lightcuts.trees.cones import cone_from_box
 from lightcuts.trees.metrics import Metric, as_metric
 from lightcuts.trees.registry import get_builder, get_metric
@@ -437,7 +437,7 @@ def _fill_blocks(order, s, e, leaves, internal, buf, left, right, light, positio
 
 
 @njit(cache=True, nogil=True)
-def _fill_cones(nlo, nhi, s, e, axis, cos_half):
+def _fill_cones(nlo, nhi, axis, cos_half, s, e):
     """Cones of nodes s..e-1 from their boxes of normals (``axis`` may be ``nlo`` itself)."""
     for node in range(s, e):
         ax, ay, az, cc = cone_from_box(nlo[node, 0], nlo[node, 1], nlo[node, 2], nhi[node, 0], nhi[node, 1],
@@ -466,32 +466,19 @@ def _fill_nodes(order, size, left, right, light, position, normal, intensity, lu
     nlo, lum = cone_axis, cone_cos
     nhi = np.empty((k, 3))
     first = np.empty(k, np.int32)
-    threads = numba.get_num_threads() if k >= _PARALLEL_MIN else 1
+    threads = threads_for(k, _PARALLEL_MIN)
     tasks, tops = _fill_tasks(order, size, max(k // (8 * threads), _FILL_BLOCK))
     args = (left, right, light, position, normal, intensity, luminance, seed, bbox_min, bbox_max, nlo, nhi,
             node_intensity, lum, first, rep)
-    groups = _balance(tasks[:, 1] - tasks[:, 0], threads)
     with ThreadPoolExecutor(threads) as pool:
-        list(pool.map(lambda g: _fill_ranges(order, tasks[g], *args), groups))
-        _fill_ranges(order, np.stack([tops, tops + 1], axis=1), *args)
-        if oriented:
-            cuts = np.linspace(0, k, threads + 1).astype(np.int64)
-            list(pool.map(lambda t: _fill_cones(nlo, nhi, cuts[t], cuts[t + 1], cone_axis, cone_cos), range(threads)))
-    if not oriented:
+        list(pool.map(lambda g: _fill_ranges(order, tasks[g], *args), balance(tasks[:, 1] - tasks[:, 0], threads)))
+    _fill_ranges(order, np.stack([tops, tops + 1], axis=1), *args)
+    if oriented:
+        on_threads(_fill_cones, k, _PARALLEL_MIN, nlo, nhi, cone_axis, cone_cos)
+    else:
         cone_axis[:] = 0.0
         cone_cos[:] = -1.0
     return bbox_min, bbox_max, cone_axis, cone_cos, node_intensity, rep
-
-
-def _balance(sizes: np.ndarray, threads: int) -> list[np.ndarray]:
-    """Task indices per thread: largest first, each to the least loaded thread."""
-    load = [0] * threads
-    groups = [[] for _ in range(threads)]
-    for j in np.argsort(-sizes, kind="stable"):
-        w = load.index(min(load))
-        groups[w].append(j)
-        load[w] += int(sizes[j])
-    return [np.array(g, np.int64) for g in groups if g]
 
 
 def build_tree(lights: LightSet, builder: str = "agglomerative", metric: str = "walter2008",

@@ -21,10 +21,10 @@ from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
 
-import numba
 import numpy as np
 from numba import njit
 
+from lightcuts.parallel import balance, threads_for
 from lightcuts.trees.registry import BUILDERS
 
 _INF = np.inf
@@ -212,23 +212,15 @@ def _divisive(position, normal, c):
     right = np.empty(k, np.int32)
     light = np.empty(k, np.int32)
     pts, perm, box = _points(position, normal, c)
-    threads = numba.get_num_threads() if n >= _PARALLEL_MIN else 1
+    threads = threads_for(n, _PARALLEL_MIN)
     root = np.array([[0, 0, n]], np.int64)
     # About 4 subtrees per thread or more, for balance: splits are at the middle, not the median.
     cut = n // (4 * threads) if threads > 1 else 0
     tasks, boxes = _subtrees(pts, perm, root, box, cut, left, right, light)
     if len(tasks):
-        # Largest first, each to the least loaded thread.
-        sizes = tasks[:, 2] - tasks[:, 1]
-        load = [0] * threads
-        groups = [[] for _ in range(threads)]
-        for j in np.argsort(-sizes, kind="stable"):
-            w = load.index(min(load))
-            groups[w].append(j)
-            load[w] += int(sizes[j])
         with ThreadPoolExecutor(threads) as pool:
             list(pool.map(lambda g: _subtrees(pts, perm, tasks[g], boxes[g], 0, left, right, light),
-                          [np.array(g, np.int64) for g in groups if g]))
+                          balance(tasks[:, 2] - tasks[:, 1], threads)))
     return left, right, light
 
 

@@ -1,0 +1,42 @@
+"""Running ``nogil`` numba kernels on the numba threads from Python threads.
+
+Several preprocessing passes (divisive subtrees, the tree fill, the forest) split their work into
+independent ranges or tasks. They run as ``@njit(nogil=True)`` kernels on a thread pool rather
+than as ``parallel=True`` kernels, whose compilation costs seconds more on the first call; the
+result never depends on the thread count, since every task writes its own outputs.
+"""
+
+from __future__ import annotations
+
+from concurrent.futures import ThreadPoolExecutor
+
+import numba
+import numpy as np
+
+
+def threads_for(n: int, min_n: int) -> int:
+    """The numba thread count for n items, or 1 below ``min_n`` (thread start-up would cost more)."""
+    return numba.get_num_threads() if n >= min_n else 1
+
+
+def on_threads(kernel, n: int, min_n: int, *args) -> None:
+    """``kernel(*args, s, e)`` over [0, n) cut into one equal range per thread (:func:`threads_for`)."""
+    threads = threads_for(n, min_n)
+    if threads == 1:
+        kernel(*args, 0, n)
+        return
+    cuts = np.linspace(0, n, threads + 1).astype(np.int64)
+    with ThreadPoolExecutor(threads) as pool:
+        list(pool.map(lambda t: kernel(*args, cuts[t], cuts[t + 1]), range(threads)))
+
+
+def balance(sizes: np.ndarray, threads: int) -> list[np.ndarray]:
+    """Task indices per thread, for tasks of the given sizes: largest first, each to the least
+    loaded thread (threads left without a task are dropped)."""
+    load = [0] * threads
+    groups = [[] for _ in range(threads)]
+    for j in np.argsort(-np.asarray(sizes), kind="stable"):
+        w = load.index(min(load))
+        groups[w].append(j)
+        load[w] += int(sizes[j])
+    return [np.array(g, np.int64) for g in groups if g]
