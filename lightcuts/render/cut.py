@@ -64,6 +64,7 @@ from lightcuts.accel.embree_kernels import ray_occluded
 from lightcuts.errors import LightcutsError
 from lightcuts.lights.lightset import LIGHT_TYPES, LUMINANCE, LightSet
 from lightcuts.parallel import on_threads
+from lightcuts.rounding import down32, up32
 from lightcuts.render.bounds import DIRECTIONAL, OMNI, ORIENTED, cluster_error_bound_framed, receiver_frames
 from lightcuts.render.shading import light_geometry, material_term
 from lightcuts.trees.tree import LightTree
@@ -142,25 +143,14 @@ def pack_nodes(node_f: np.ndarray, node_k: np.ndarray) -> tuple[np.ndarray, np.n
     return node_b, node_bi
 
 
-@njit(cache=True)
-def _round32(x, down):
-    """float64 -> float32 rounded towards -inf (``down``) or +inf, so a box only grows."""
-    f = np.float32(x)
-    if down and f > x:
-        f = np.nextafter(f, np.float32(-np.inf))
-    elif not down and f < x:
-        f = np.nextafter(f, np.float32(np.inf))
-    return f
-
-
 @njit(cache=True, nogil=True)
 def _pack(node_f, node_k, node_b, node_bi, s, e):
     """:func:`pack_nodes`' loop over rows s..e-1: node_b and node_bi are two views of the same (K, 16)
     records."""
     for k in range(s, e):
         for t in range(3):
-            node_b[k, NB_LO + t] = _round32(node_f[k, NF_LO + t], True)
-            node_b[k, NB_HI + t] = _round32(node_f[k, NF_HI + t], False)
+            node_b[k, NB_LO + t] = down32(node_f[k, NF_LO + t])
+            node_b[k, NB_HI + t] = up32(node_f[k, NF_HI + t])
             node_b[k, NB_AXIS + t] = np.float32(node_f[k, NF_AXIS + t])
             node_b[k, NB_I + t] = np.float32(node_f[k, NF_I + t])
         c = node_f[k, NF_COS]
@@ -168,7 +158,7 @@ def _pack(node_f, node_k, node_b, node_bi, s, e):
         if c <= -1.0 or beta >= np.pi:
             node_b[k, NB_COS] = np.float32(-1.0)
         else:
-            node_b[k, NB_COS] = _round32(np.cos(beta), True)
+            node_b[k, NB_COS] = down32(np.cos(beta))
         node_bi[k, NB_LEFT] = node_k[k, NK_LEFT]
         node_bi[k, NB_REP] = node_k[k, NK_REP]
         node_bi[k, NB_FLAGS] = 2 * np.int32(node_f[k, NF_TYPE]) + (node_k[k, NK_ALL_INDIRECT] > 0)

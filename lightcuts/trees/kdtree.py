@@ -83,6 +83,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from lightcuts.rounding import down32, up32
 from lightcuts.trees.cones import cone_from_box
 from lightcuts.trees.metrics import metric_eval
 
@@ -132,24 +133,6 @@ def _rows_f32(m, width):
     buf = np.empty(m * width + 16, np.float32)
     off = ((64 - buf.ctypes.data % 64) % 64) // 4
     return buf[off:off + m * width].reshape((m, width))
-
-
-@njit(cache=True)
-def _down32(x):
-    """The largest float32 <= x."""
-    f = np.float32(x)
-    if f > x:
-        f = np.nextafter(f, np.float32(-np.inf))
-    return f
-
-
-@njit(cache=True)
-def _up32(x):
-    """The smallest float32 >= x."""
-    f = np.float32(x)
-    if f < x:
-        f = np.nextafter(f, np.float32(np.inf))
-    return f
 
 
 @njit(cache=True)
@@ -213,16 +196,16 @@ def _leaf_bounds(slot_f, s0, s1, node_s, node_n, k):
             nhmin = min(nhmin, hi)
             nlmax = max(nlmax, lo)
             nemin = min(nemin, hi - lo)
-        node_s[k, N_HMIN + t] = _down32(hmin)
-        node_s[k, N_LMAX + t] = _up32(lmax)
-        node_s[k, N_EMIN + t] = _down32(emin)
-        node_n[k, NH_MIN + t] = _down32(nhmin)
-        node_n[k, NL_MAX + t] = _up32(nlmax)
-        node_n[k, NE_MIN + t] = _down32(nemin)
+        node_s[k, N_HMIN + t] = down32(hmin)
+        node_s[k, N_LMAX + t] = up32(lmax)
+        node_s[k, N_EMIN + t] = down32(emin)
+        node_n[k, NH_MIN + t] = down32(nhmin)
+        node_n[k, NL_MAX + t] = up32(nlmax)
+        node_n[k, NE_MIN + t] = down32(nemin)
     imin = np.inf
     for s in range(s0, s1):
         imin = min(imin, slot_f[s, S_I])
-    node_s[k, N_IMIN] = _down32(imin)
+    node_s[k, N_IMIN] = down32(imin)
 
 
 @njit(cache=True)
