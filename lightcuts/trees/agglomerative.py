@@ -11,26 +11,32 @@ greedy tree (Fig. 2), up to ties. With box-of-normals cones the metric is not mo
 differ from the greedy one in a few clusters (``benchmarks/bench_agglomerative.py`` measures how
 many).
 
-``agglomerative`` -- locally-ordered clustering (Fig. 4)::
+``agglomerative`` -- locally-ordered clustering (Fig. 4: merge A and B as soon as each is the
+other's best match, in any order), run in rounds so that its searches can share the cores::
 
-    A = any cluster; B = best(A)
+    search best(A) for every cluster
     while more than one cluster:
-        C = best(B)
-        if C == A or d(A u B) <= d(B u C):   # the tie rule of section 3.2
-            A = merge(A, B); B = best(A)
-        else:
-            A, B = B, C
+        for each pair A, B = best(A) with d(A u B) <= d(B u best(B)):   # the tie rule of section 3.2
+            merge(A, B)
+        search best(X) for each new cluster X, and each X whose best match was merged
 
-Each step that does not merge strictly lowers d (C is B's best match and d(B u C) < d(A u B)), so
-there are no cycles, even with a non-monotone metric or ties. The search for best(B) starts from the
-known candidate A at d(A u B). The first A is drawn from ``seed``.
+The searches of a round only read the kd-tree and each writes its own cluster's answer, so they run
+on the numba threads (rounds of at least ``PARALLEL_MIN`` searches) and the tree does not depend on
+the thread count; the merges run on one thread, in a fixed order, which numbers the nodes.
 
-best(B) is answered without a search when B's last search is provably still right: its partner is
-still active, and no cluster merged since can beat it, which :func:`~lightcuts.trees.kdtree.
-kd_best_match` certifies with a lower bound that grows under union (for monotone metrics always; for
-box-of-normals cones when no other cluster came within the cone-term bound). The answer is the one
-a fresh search would give, up to ties. On indirect VPLs about 5% of best(B) calls are answered so:
-most cached partners have been merged away by the time B is asked again.
+Why it is Fig. 4: a pair is merged only when neither has a better partner (B's best d is no smaller
+than d(A u B)), the condition under which Fig. 4's chain merges; with a non-decreasing metric such
+pairs are exactly the ones the greedy Fig. 2 merges, in another order (a cluster made later cannot
+come closer to A than A's partner was), so the tree is the greedy one up to ties. The tie rule
+makes every round merge: the pair with the smallest d over all clusters passes it. Only pairs with
+a cluster searched in the round are checked, since any other pair was checked with the same values
+when the later of its two was searched; each cluster keeps a list of the clusters whose best match
+it is, so a merge finds whom to search again without a scan.
+
+With box-of-normals cones, as with the heap version, a cluster's best match is searched again only
+when its partner is merged away, so a cluster made meanwhile may beat a kept partner; Fig. 4's
+chain asks afresh at each step. ``benchmarks/bench_agglomerative.py`` measures how often the
+builders disagree.
 
 ``agglomerative-heap`` -- the heap-based version (Fig. 3): every cluster's best match in a binary
 min-heap keyed on (d, cluster id); pop the smallest; skip it if its cluster was merged away;
@@ -44,14 +50,12 @@ faster at 200K Cornell VPLs, 12% at 800K); the kd-tree reads the lights through 
 the kernel relabels the leaves to light ids at the end. Only the ids among tied clusters depend on
 the order, as with any relabelling.
 
-Work (200K Cornell VPLs, oriented, walter2008): about 3.3 kd-tree searches per merge (1 for each new
-cluster, 1 per chain step, 1.44 chain steps per merge, minus the cached answers); the searches are
-about 85% of the time, the kd-tree (re)builds about 10%, the Morton order about 1%.
+Work (200K Cornell VPLs, oriented, walter2008): 3.48 kd-tree searches per merge (one per light at
+the start, one per new cluster, 1.48 for clusters whose partner was merged) in 60 rounds; the
+heap version makes 3.41. The searches take about 75% of the CPU time, the kd-tree (re)builds about 9%.
 
 Node ids of the returned topology: leaves 0..N-1 are lights 0..N-1, merge m makes node N + m, the
-root is 2N - 2. Both run single-threaded (the merge loop is sequential; the paper's heap version
-also starts from one best-match search per light, which we keep sequential so that the two
-algorithms compare like for like).
+root is 2N - 2. The heap version runs on one thread, as in the paper.
 """
 
 from __future__ import annotations
@@ -60,7 +64,8 @@ import numpy as np
 from numba import njit
 
 from lightcuts.errors import LightcutsError
-from lightcuts.trees.kdtree import LEAF_SIZE, kd_best_match, kd_merge, kd_new
+from lightcuts.parallel import on_threads
+from lightcuts.trees.kdtree import LEAF_SIZE, kd_best_match, kd_merge, kd_new, kd_scratch
 from lightcuts.trees.metrics import Metric
 from lightcuts.trees.registry import BUILDERS
 
@@ -128,73 +133,149 @@ def _leaves_to_lights(left, right, order):
 
 
 @njit(cache=True)
-def _agglomerate(position, normal, luminance, order, metric_id, has_cone, use_cone, c, start, leafsize, heap):
-    """Both builders in one kernel (one compilation): Fig. 4 (``heap`` False) or Fig. 3 (True).
+def _leaf_ids(n):
+    """(2N-1,) int32 light per node: leaves 0..N-1 are clusters 0..N-1, -1 elsewhere (relabelled later)."""
+    light = np.full(2 * n - 1, -1, np.int32)
+    # A loop, not a slice assignment: numba's slice-shape error path costs seconds of compilation.
+    for i in range(n):
+        light[i] = i
+    return light
 
-    Cluster i < N is light ``order[i]`` (:func:`morton_order`); ``start`` is a cluster id. Returns
-    ``(left, right, light, stats)`` with leaves as light ids, the root being node 2N-2; ``stats`` = [kd-tree
-    searches, chain steps without a merge (locally ordered) or stale heap entries skipped (heap),
-    best matches answered from the cache (locally ordered)].
+
+# Entries of the locally-ordered builder's counters array.
+C_NEXT, C_SEARCHES, C_ROUNDS = 0, 1, 2
+
+
+@njit(cache=True)
+def _rounds_start(position, normal, luminance, order, leafsize):
+    """The locally-ordered builder's state: every cluster to be searched in the first round.
+
+    Returns ``(kd, work, todo, todo_next, best, best_d, head, nxt, left, right, counters)``:
+    todo, todo_next : (N,) int64 clusters to search this round (kd-slot order at first), and the
+        next round's; best, best_d : (2N-1,) each cluster's last best match (-1: none, -2: gone)
+        and its d; head, nxt : per cluster, the singly linked list of the clusters whose best match
+        it is (-1 ends it); left, right : (2N-1,) int32 children; counters : see ``C_*``.
     """
+    n = position.shape[0]
+    k = 2 * n - 1
+    kd, work = kd_new(position, normal, luminance, order, leafsize)
+    todo = np.empty(n, np.int64)
+    for s in range(n):
+        todo[s] = kd[1][s]
+    counters = np.zeros(3, np.int64)
+    counters[C_NEXT] = n
+    return (kd, work, todo, np.empty(n, np.int64), np.full(k, -1, np.int64), np.full(k, np.inf),
+            np.full(k, -1, np.int64), np.full(k, -1, np.int64), np.full(k, -1, np.int32), np.full(k, -1, np.int32),
+            counters)
+
+
+@njit(cache=True, nogil=True)
+def _search_range(kd, todo, best, best_d, metric_id, has_cone, use_cone, c, s, e):
+    """best[a], best_d[a] = findBestMatch(a) for a in todo[s:e]: one thread's share of a round.
+
+    The searches only read the kd-tree, and each writes its own entries, so the result does not
+    depend on how a round is split among threads.
+    """
+    kdt = kd_scratch(kd)
+    for i in range(s, e):
+        a = todo[i]
+        best[a], best_d[a] = kd_best_match(kdt, a, metric_id, has_cone, use_cone, c)
+
+
+@njit(cache=True, nogil=True)
+def _merge_round(kd, work, todo, n_todo, todo_next, best, best_d, head, nxt, left, right, counters):
+    """After the searches of ``todo[:n_todo]``: merge every pair the tie rule allows; returns the next
+    round's count (its clusters written to ``todo``).
+
+    A checked on B = best(A) merges when d(A u B) <= B's own best d. Only pairs with a cluster
+    searched this round are checked: A searched, or B searched and A in B's list. Any other pair was
+    checked with the same values when the later of its two was searched. A merge queues the new
+    cluster, and every cluster whose best match was one of the two (read off their lists).
+    """
+    slot_of = kd[2]
+    k = left.shape[0]
+    new = counters[C_NEXT]
+    counters[C_SEARCHES] += n_todo
+    counters[C_ROUNDS] += 1
+    for i in range(n_todo):
+        a = todo[i]
+        b = best[a]
+        if b >= 0:
+            nxt[a] = head[b]
+            head[b] = a
+    count = 0
+    for i in range(n_todo):
+        searched = todo[i]
+        # The searched cluster's own pair first, then the pairs of the clusters listing it.
+        a = searched
+        z = head[searched]
+        while True:
+            b = best[a]
+            if slot_of[a] >= 0 and b >= 0 and slot_of[b] >= 0 and best[b] >= 0 and best_d[a] <= best_d[b]:
+                left[new] = a
+                right[new] = b
+                kd_merge(kd, work, a, b, new)
+                todo_next[count] = new
+                count += 1
+                new += 1
+                for gone in (a, b):
+                    y = head[gone]
+                    while y >= 0:
+                        if slot_of[y] >= 0 and best[y] == gone:
+                            todo_next[count] = y
+                            count += 1
+                            best[y] = -2
+                        y = nxt[y]
+                if new == k or slot_of[searched] < 0:
+                    break
+            if z < 0:
+                break
+            a = z
+            z = nxt[z]
+        if new == k:
+            break
+    for i in range(count):
+        todo[i] = todo_next[i]
+    counters[C_NEXT] = new
+    return count
+
+
+def _locally_ordered(position, normal, luminance, order, metric_id, has_cone, use_cone, c, leafsize,
+                     parallel_min):
+    """Fig. 4 in rounds: ``(left, right, light, counters)``, leaves as cluster ids (Morton order).
+
+    Rounds of at least ``parallel_min`` searches split them over the numba threads. Each round is
+    two kernel calls from here (a kernel running all rounds would compile the search a second time,
+    seconds of a cold start, to save about 0.1 ms per round).
+    """
+    n = position.shape[0]
+    light = _leaf_ids(n)
+    if n == 1:
+        return np.full(1, -1, np.int32), np.full(1, -1, np.int32), light, np.zeros(3, np.int64)
+    kd, work, todo, todo_next, best, best_d, head, nxt, left, right, counters = _rounds_start(
+        position, normal, luminance, order, leafsize)
+    n_todo = n
+    while counters[C_NEXT] < left.shape[0]:
+        on_threads(_search_range, n_todo, parallel_min, kd, todo, best, best_d, metric_id, has_cone, use_cone, c)
+        n_todo = _merge_round(kd, work, todo, n_todo, todo_next, best, best_d, head, nxt, left, right, counters)
+    return left, right, light, counters
+
+
+@njit(cache=True)
+def _agglomerate_heap(position, normal, luminance, order, metric_id, has_cone, use_cone, c, leafsize):
+    """Fig. 3: ``(left, right, light, stats)``, leaves as cluster ids (Morton order); ``stats`` =
+    [kd-tree searches, stale heap entries skipped]."""
     n = position.shape[0]
     k = 2 * n - 1
     left = np.full(k, -1, np.int32)
     right = np.full(k, -1, np.int32)
-    light = np.full(k, -1, np.int32)
-    # A loop, not a slice assignment: numba's slice-shape error path costs seconds of compilation.
-    for i in range(n):
-        light[i] = i
-    stats = np.zeros(3, np.int64)
+    light = _leaf_ids(n)
+    stats = np.zeros(2, np.int64)
     if n == 1:
         return left, right, light, stats
     kd, work = kd_new(position, normal, luminance, order, leafsize)
     slot_of = kd[2]
-    # Typed ids: a literal -1 would make numba compile a second specialisation of kd_best_match.
-    none = np.int64(-1)
     new = np.int64(n)
-    if not heap:
-        # Each cluster's last search: partner, d, and the lower bound that proves the partner is
-        # still the best match while both are active (see kd_best_match); -1: never searched.
-        cached = np.full(k, -1, np.int64)
-        cached_d = np.empty(k)
-        cached_lb = np.empty(k)
-        a = np.int64(start)
-        b, d_ab, lb = kd_best_match(kd, a, none, np.inf, metric_id, has_cone, use_cone, c)
-        stats[0] += 1
-        cached[a] = b
-        cached_d[a] = d_ab
-        cached_lb[a] = lb
-        while new < k:
-            cc = cached[b]
-            if cc >= 0 and slot_of[cc] >= 0 and cached_lb[b] >= cached_d[b]:
-                d_bc = cached_d[b]
-                stats[2] += 1
-            else:
-                cc, d_bc, lb = kd_best_match(kd, b, a, d_ab, metric_id, has_cone, use_cone, c)
-                stats[0] += 1
-                cached[b] = cc
-                cached_d[b] = d_bc
-                cached_lb[b] = lb
-            # C is B's best match, so d(B u C) <= d(A u B); equality is the tie rule: merge.
-            if cc == a or d_ab <= d_bc:
-                left[new] = a
-                right[new] = b
-                kd_merge(kd, work, a, b, new)
-                a = new
-                new += 1
-                if new < k:
-                    b, d_ab, lb = kd_best_match(kd, a, none, np.inf, metric_id, has_cone, use_cone, c)
-                    stats[0] += 1
-                    cached[a] = b
-                    cached_d[a] = d_ab
-                    cached_lb[a] = lb
-            else:
-                a = b
-                b = cc
-                d_ab = d_bc
-                stats[1] += 1
-        _leaves_to_lights(left, right, order)
-        return left, right, light, stats
     # Live entries never exceed the active clusters: each pop pushes at most one entry.
     hd = np.empty(n)
     ha = np.empty(n, np.int64)
@@ -205,7 +286,7 @@ def _agglomerate(position, normal, luminance, order, metric_id, has_cone, use_co
     slot_id = kd[1]
     for s in range(n):
         i = np.int64(slot_id[s])
-        b, d, lb = kd_best_match(kd, i, none, np.inf, metric_id, has_cone, use_cone, c)
+        b, d = kd_best_match(kd, i, metric_id, has_cone, use_cone, c)
         size = _heap_push(hd, ha, hb, size, d, i, b)
     stats[0] += n
     while new < k:
@@ -214,7 +295,7 @@ def _agglomerate(position, normal, luminance, order, metric_id, has_cone, use_co
             stats[1] += 1
             continue
         if slot_of[b] < 0:
-            b, d, lb = kd_best_match(kd, a, none, np.inf, metric_id, has_cone, use_cone, c)
+            b, d = kd_best_match(kd, a, metric_id, has_cone, use_cone, c)
             stats[0] += 1
             size = _heap_push(hd, ha, hb, size, d, a, b)
             continue
@@ -222,11 +303,10 @@ def _agglomerate(position, normal, luminance, order, metric_id, has_cone, use_co
         right[new] = b
         kd_merge(kd, work, a, b, new)
         if new < k - 1:
-            b, d, lb = kd_best_match(kd, new, none, np.inf, metric_id, has_cone, use_cone, c)
+            b, d = kd_best_match(kd, new, metric_id, has_cone, use_cone, c)
             stats[0] += 1
             size = _heap_push(hd, ha, hb, size, d, new, b)
         new += 1
-    _leaves_to_lights(left, right, order)
     return left, right, light, stats
 
 
@@ -302,28 +382,36 @@ def morton_order(position: np.ndarray) -> np.ndarray:
     return (keys & np.uint64((1 << index_bits) - 1)).astype(np.int64)
 
 
+# Rounds with fewer searches than this run on one thread (a round's thread start-up costs about as
+# much as a few dozen searches; the last rounds are small and many).
+PARALLEL_MIN = 2048
+
+
 def agglomerative_stats(position, normal, luminance, light_type: str, metric: Metric, c: float, seed: int,
-                        heap: bool = False, leafsize: int = LEAF_SIZE):
+                        heap: bool = False, leafsize: int = LEAF_SIZE, parallel_min: int = PARALLEL_MIN):
     """Either builder with its work counters: ``(left, right, light, root, stats)``.
 
     stats : dict with ``searches`` (kd-tree findBestMatch searches) and, for the locally-ordered
-    builder, ``steps`` (chain steps without a merge) and ``cached`` (best matches answered from the
-    cache), for the heap builder ``stale`` (entries skipped because their cluster was gone).
-    leafsize : clusters per kd leaf (a tuning knob; results do not depend on it except among ties)
+    builder, ``rounds``, for the heap builder ``stale`` (entries skipped because their cluster was
+    gone).
+    leafsize : clusters per kd leaf; parallel_min : the smallest round searched on several threads
+    (tuning knobs: the tree depends on neither, except among ties for the leaf size)
+    seed : unused (both are deterministic)
     """
     if int(leafsize) < 1:
         raise ValueError(f"leafsize must be >= 1, got {leafsize}")
     args = _arguments(position, normal, luminance, light_type, metric, c, "agglomerative-heap" if heap else
                       "agglomerative")
     n = len(args[0])
-    start = int(np.random.default_rng(seed).integers(n))
     # Build over the lights in Morton order (cluster i = light order[i]); leaves come back as lights.
     order = morton_order(args[0])
-    left, right, light, st = _agglomerate(*args[:3], order, *args[3:], int(np.flatnonzero(order == start)[0]),
-                                          int(leafsize), bool(heap))
-    stats = {"searches": int(st[0]), ("stale" if heap else "steps"): int(st[1])}
-    if not heap:
-        stats["cached"] = int(st[2])
+    if heap:
+        left, right, light, st = _agglomerate_heap(*args[:3], order, *args[3:], int(leafsize))
+        stats = {"searches": int(st[0]), "stale": int(st[1])}
+    else:
+        left, right, light, st = _locally_ordered(*args[:3], order, *args[3:], int(leafsize), int(parallel_min))
+        stats = {"searches": int(st[C_SEARCHES]), "rounds": int(st[C_ROUNDS])}
+    _leaves_to_lights(left, right, order)
     return left, right, light, 2 * n - 2, stats
 
 
@@ -333,7 +421,7 @@ def agglomerative(position, normal, luminance, light_type: str, metric: Metric, 
 
     position, normal : (N, 3) float64; luminance : (N,) float64 scalar intensity
     light_type : "omni", "oriented" (the only type with a cone term) or "directional"
-    metric : a built-in Metric; c : cone-term scale, world units; seed : picks the first cluster
+    metric : a built-in Metric; c : cone-term scale, world units; seed : unused (deterministic)
     Returns ``(left, right, light, root)`` over 2N-1 nodes (leaves 0..N-1, root 2N-2).
     """
     return agglomerative_stats(position, normal, luminance, light_type, metric, c, seed)[:4]
@@ -343,6 +431,6 @@ def agglomerative(position, normal, luminance, light_type: str, metric: Metric, 
 def agglomerative_heap(position, normal, luminance, light_type: str, metric: Metric, c: float, seed: int):
     """Heap-based agglomerative clustering (Walter et al. 2008, Fig. 3); see the module docstring.
 
-    Same arguments and result as :func:`agglomerative`; deterministic, ``seed`` is unused.
+    Same arguments and result as :func:`agglomerative`.
     """
     return agglomerative_stats(position, normal, luminance, light_type, metric, c, seed, heap=True)[:4]

@@ -60,8 +60,7 @@ the box is the bounding box of actual unit normals, so two normals of A u B diff
 axis, hence are at least D = max_k Dk apart, at an angle >= 2 asin(D/2); any cone containing both
 has half-angle beta >= asin(D/2), i.e. ``cos(beta) <= sqrt(1 - D^2/4)``. The metric is evaluated
 with that cosine (S and 1 - cos(beta) only grow as cos(beta) falls). The same cosine, from a pair's
-own normal-box spread, gives ``d_lb(A u B) <= d(A u B)``, which grows under union: the builders use
-it to prove a cached best match still best (:func:`kd_best_match`).
+own normal-box spread, bounds the pair's d from below, which spares most pairs their cone.
 
 Rounding: the metric is a composition of monotone floating-point operations, so a bound holds as
 computed when its inputs do. The bound's extents are computed as the pair's own are, from ends
@@ -137,14 +136,14 @@ def _rows_f32(m, width):
 
 @njit(cache=True)
 def _select(keys, idx, axis, lo, hi, kth):
-    """Partial sort of columns lo..hi (inclusive) of ``keys`` (3, n) and ``idx`` by ``keys[axis]`` so
-    that column kth holds its sorted value, smaller-or-equal values before it, larger-or-equal after
-    (Wirth's selection with a median-of-three pivot; equal keys split evenly, no quadratic case)."""
-    row = keys[axis]
+    """Partial sort of rows lo..hi (inclusive) of ``keys`` (n, 3) and ``idx`` by ``keys[:, axis]`` so
+    that row kth holds its sorted value, smaller-or-equal values before it, larger-or-equal after
+    (Wirth's selection with a median-of-three pivot; equal keys split evenly, no quadratic case).
+    A swap moves one 24-byte row of keys, in one cache line mostly."""
     while lo < hi:
-        a = row[lo]
-        b = row[kth]
-        c = row[hi]
+        a = keys[lo, axis]
+        b = keys[kth, axis]
+        c = keys[hi, axis]
         if a > b:
             a, b = b, a
         if b > c:
@@ -155,15 +154,15 @@ def _select(keys, idx, axis, lo, hi, kth):
         i = lo
         j = hi
         while i <= j:
-            while row[i] < pivot:
+            while keys[i, axis] < pivot:
                 i += 1
-            while pivot < row[j]:
+            while pivot < keys[j, axis]:
                 j -= 1
             if i <= j:
                 for r in range(3):
-                    t = keys[r, i]
-                    keys[r, i] = keys[r, j]
-                    keys[r, j] = t
+                    t = keys[i, r]
+                    keys[i, r] = keys[j, r]
+                    keys[j, r] = t
                 t2 = idx[i]
                 idx[i] = idx[j]
                 idx[j] = t2
@@ -214,7 +213,7 @@ def kd_build(kd, keys, idx, trow):
 
     kd : the tuple from :func:`kd_new`; its active slots are compacted to the front, reordered into
         kd leaves, and every node bound is recomputed exactly (then rounded outwards).
-    keys (3, S) float64, idx (S,) int32, trow (SLOT_WIDTH,) float64 : workspace
+    keys (S, 3) float64, idx (S,) int32, trow (SLOT_WIDTH,) float64 : workspace
     """
     slot_f, slot_id, slot_of, slot_leaf, node_s, node_n, node_cnt, leaf_start, info = kd[:9]
     # Compact: active rows to the front (only the old leaf ranges hold rows). n starts as a typed
@@ -236,7 +235,7 @@ def kd_build(kd, keys, idx, trow):
     for s in range(n):
         idx[s] = s
         for t in range(3):
-            keys[t, s] = 0.5 * (slot_f[s, S_LO + t] + slot_f[s, S_HI + t])
+            keys[s, t] = 0.5 * (slot_f[s, S_LO + t] + slot_f[s, S_HI + t])
     rs = np.empty(n_nodes, np.int64)
     re = np.empty(n_nodes, np.int64)
     rs[0] = 0
@@ -248,8 +247,8 @@ def kd_build(kd, keys, idx, trow):
         cell[0, t] = np.inf
         cell[0, 3 + t] = -np.inf
         for u in range(n):
-            cell[0, t] = min(cell[0, t], keys[t, u])
-            cell[0, 3 + t] = max(cell[0, 3 + t], keys[t, u])
+            cell[0, t] = min(cell[0, t], keys[u, t])
+            cell[0, 3 + t] = max(cell[0, 3 + t], keys[u, t])
     for k in range(first_leaf):
         s = rs[k]
         e = re[k]
@@ -260,7 +259,7 @@ def kd_build(kd, keys, idx, trow):
                 axis = t
         if e - s > 1:
             _select(keys, idx, axis, s, e - 1, mid)
-        split = keys[axis, mid] if mid < e else cell[k, axis]
+        split = keys[mid, axis] if mid < e else cell[k, axis]
         node_s[k, N_AXIS] = axis
         node_s[k, N_SPLIT] = split
         for child in range(2 * k + 1, 2 * k + 3):
@@ -351,7 +350,7 @@ def kd_new(position, normal, luminance, order, leafsize):
     kd = (slot_f, slot_id, slot_of, np.empty(n, np.int32), _rows_f32(n_nodes, NODE_WIDTH),
           _rows_f32(n_nodes, NORMAL_WIDTH), np.zeros(n_nodes, np.int32), np.zeros((1 << depth) + 1, np.int64), info,
           np.empty(_STACK, np.int64), np.empty(_STACK), np.empty(leafsize))
-    work = (np.empty((3, n)), np.empty(n, np.int32), np.empty(SLOT_WIDTH))
+    work = (np.empty((n, 3)), np.empty(n, np.int32), np.empty(SLOT_WIDTH))
     kd_build(kd, work[0], work[1], work[2])
     return kd, work
 
@@ -372,25 +371,20 @@ def _union_extent(qlo, qhi, hmin, lmax, emin):
 
 
 @njit(cache=True)
-def kd_best_match(kd, a, hint, hint_d, metric_id, has_cone, use_cone, c):
+def kd_best_match(kd, a, metric_id, has_cone, use_cone, c):
     """findBestMatch(A): the active cluster B != A minimising d(A u B).
 
-    kd : the tree (:func:`kd_new`); a : active cluster id; hint, hint_d : an active cluster known
-        to the caller and d(A u hint) (-1, inf for none), which starts the bound; metric_id,
-        has_cone : as for :func:`~lightcuts.trees.metrics.metric_eval`; use_cone : compute the
-        union's cone (oriented lights and a metric with a cone term); c : cone-term scale.
-    Returns ``(b, d, others_lb)``; ``(-1, inf, inf)`` if A is the only active cluster.
+    kd : the tree (:func:`kd_new`); a : active cluster id; metric_id, has_cone : as for
+        :func:`~lightcuts.trees.metrics.metric_eval`; use_cone : compute the union's cone (oriented
+        lights and a metric with a cone term); c : cone-term scale.
+    Returns ``(b, d)``; ``(-1, inf)`` if A is the only active cluster.
 
     d is the metric as the builders define it: union box, box-of-normals cone of the union, summed
-    intensity. ``others_lb`` bounds from below, over every active P other than b, the value
-    d_lb(A u P) (module docstring) wherever that is below d. So if ``others_lb >= d``, b stays A's
-    best match for as long as A and b are both active, whatever is merged meanwhile: a later
-    cluster Z contains some P active now, and d(A u Z) >= d_lb(A u Z) >= d_lb(A u P) >= d. The
-    locally-ordered builder caches such answers.
+    intensity. Among equal d the smallest id found wins; nodes whose bound equals the best d are
+    pruned, so which of several tied clusters is returned depends on the tree.
 
-    Among equal d the smallest id found wins; nodes whose bound equals the best d are pruned, so
-    which of several tied clusters is returned depends on the tree.
-
+    Reads the tree only, writing nothing but the traversal stack and leaf buffer in ``kd``, so
+    searches on several threads need only their own copies of those three (:func:`kd_scratch`).
     The loop calls only scalar helpers: in numba an array passed to a helper costs two atomic
     reference-count updates per call, which was 40% of the search time.
     """
@@ -413,11 +407,8 @@ def kd_best_match(kd, a, hint, hint_d, metric_id, has_cone, use_cone, c):
     qc0 = 0.5 * (qlo0 + qhi0)
     qc1 = 0.5 * (qlo1 + qhi1)
     qc2 = 0.5 * (qlo2 + qhi2)
-    best = hint
-    best_d = hint_d if hint >= 0 else np.inf
-    # The hint's d_lb is unknown: should it be displaced, others_lb becomes -inf (no cache proof).
-    best_lb = -np.inf
-    others_lb = np.inf
+    best = np.int64(-1)
+    best_d = np.inf
     # Bottom-up: A's own leaf first (its neighbours give a tight bound at once), then, climbing to
     # the root, each sibling subtree on the way, top-down with the child on A's side of the split
     # first. A node's bound is computed when it is popped (stack_lb < 0), against the best d then.
@@ -466,8 +457,6 @@ def kd_best_match(kd, a, hint, hint_d, metric_id, has_cone, use_cone, c):
                 continue
             # Two passes over the leaf: first the metric without its cone term for every slot (no
             # branches, so the loads of all rows overlap), then only the slots it does not prune.
-            # That metric bounds d and d_lb from below; a pruned slot's d_lb >= best d, so it needs
-            # no place in others_lb.
             s0 = leaf_start[k - first_leaf]
             cnt = node_cnt[k]
             for i in range(cnt):
@@ -484,7 +473,6 @@ def kd_best_match(kd, a, hint, hint_d, metric_id, has_cone, use_cone, c):
                 b = slot_id[s]
                 if b == a:
                     continue
-                d_lb = d
                 if use_cone:
                     lo0 = min(qlo0, slot_f[s, S_LO])
                     lo1 = min(qlo1, slot_f[s, S_LO + 1])
@@ -500,21 +488,16 @@ def kd_best_match(kd, a, hint, hint_d, metric_id, has_cone, use_cone, c):
                     nhi1 = max(qnhi1, slot_f[s, S_NHI + 1])
                     nhi2 = max(qnhi2, slot_f[s, S_NHI + 2])
                     spread = max(nhi0 - nlo0, nhi1 - nlo1, nhi2 - nlo2)
-                    d_lb = metric_eval(metric_id, intensity, lo0, lo1, lo2, hi0, hi1, hi2, _cone_cos_bound(spread),
-                                       has_cone, c)
-                    # d >= d_lb: past the best d already, the cone itself is not needed.
-                    d = d_lb
-                    if d_lb <= best_d:
+                    # The pair's own normal spread bounds its cone from below: past the best d
+                    # already, the cone itself is not needed.
+                    d = metric_eval(metric_id, intensity, lo0, lo1, lo2, hi0, hi1, hi2, _cone_cos_bound(spread),
+                                    has_cone, c)
+                    if d <= best_d:
                         ax, ay, az, cos_half = cone_from_box(nlo0, nlo1, nlo2, nhi0, nhi1, nhi2)
                         d = metric_eval(metric_id, intensity, lo0, lo1, lo2, hi0, hi1, hi2, cos_half, has_cone, c)
                 if d < best_d or (d == best_d and b < best):
-                    if best >= 0:
-                        others_lb = min(others_lb, best_lb)
                     best = b
                     best_d = d
-                    best_lb = d_lb
-                else:
-                    others_lb = min(others_lb, d_lb)
         if up == 0:
             break
         sib = up + 1 if up & 1 else up - 1
@@ -523,7 +506,7 @@ def kd_best_match(kd, a, hint, hint_d, metric_id, has_cone, use_cone, c):
             stack_node[0] = sib
             stack_lb[0] = -1.0
             sp = 1
-    return best, best_d, others_lb
+    return best, best_d
 
 
 @njit(cache=True)
@@ -575,6 +558,13 @@ def kd_merge(kd, work, a, b, new_id):
         kd_build(kd, work[0], work[1], work[2])
 
 
+@njit(cache=True, nogil=True)
+def kd_scratch(kd):
+    """The tree ``kd`` with its own traversal stack and leaf buffer, for a search on another thread."""
+    return (kd[0], kd[1], kd[2], kd[3], kd[4], kd[5], kd[6], kd[7], kd[8], np.empty(kd[9].shape[0], np.int64),
+            np.empty(kd[10].shape[0]), np.empty(kd[11].shape[0]))
+
+
 @njit(cache=True)
 def _best_matches_after(position, normal, luminance, merges, metric_id, has_cone, use_cone, c, leafsize):
     n = position.shape[0]
@@ -584,13 +574,9 @@ def _best_matches_after(position, normal, luminance, merges, metric_id, has_cone
     active = np.flatnonzero(kd[2] >= 0)
     best = np.empty(active.shape[0], np.int64)
     best_d = np.empty(active.shape[0])
-    others_lb = np.empty(active.shape[0])
     for i in range(active.shape[0]):
-        b, d, lb = kd_best_match(kd, active[i], np.int64(-1), np.inf, metric_id, has_cone, use_cone, c)
-        best[i] = b
-        best_d[i] = d
-        others_lb[i] = lb
-    return active, best, best_d, others_lb
+        best[i], best_d[i] = kd_best_match(kd, active[i], metric_id, has_cone, use_cone, c)
+    return active, best, best_d
 
 
 def best_matches_after_merges(position, normal, luminance, has_cone: bool, metric, c: float,
@@ -602,8 +588,7 @@ def best_matches_after_merges(position, normal, luminance, has_cone: bool, metri
     has_cone : True for oriented lights; metric : a built-in Metric; c : cone-term scale
     merges : (M, 2) int cluster ids merged in order; merge m creates cluster N + m
     leafsize : clusters per kd leaf
-    Returns ``(active, best, d, others_lb)``: (K,) int64 active cluster ids, their best matches,
-    the metric values and the cache certificates of :func:`kd_best_match`.
+    Returns ``(active, best, d)``: (K,) int64 active cluster ids, their best matches and the metric values.
     """
     position = np.ascontiguousarray(position, np.float64)
     merges = np.zeros((0, 2), np.int64) if merges is None else np.ascontiguousarray(merges, np.int64)
