@@ -152,9 +152,10 @@ def _rounds_start(position, normal, luminance, order, leafsize):
 
     Returns ``(kd, work, todo, todo_next, best, best_d, head, nxt, left, right, counters)``:
     todo, todo_next : (N,) int64 clusters to search this round (kd-slot order at first), and the
-        next round's; best, best_d : (2N-1,) each cluster's last best match (-1: none, -2: gone)
-        and its d; head, nxt : per cluster, the singly linked list of the clusters whose best match
-        it is (-1 ends it); left, right : (2N-1,) int32 children; counters : see ``C_*``.
+        next round's; best, best_d : (2N-1,) int32 each cluster's last best match (-1: none, -2:
+        gone) and its float64 d; head, nxt : (2N-1,) int32 per cluster, the singly linked list of
+        the clusters whose best match it is (-1 ends it); left, right : (2N-1,) int32 children;
+        counters : see ``C_*``.
     """
     n = position.shape[0]
     k = 2 * n - 1
@@ -164,8 +165,8 @@ def _rounds_start(position, normal, luminance, order, leafsize):
         todo[s] = kd[1][s]
     counters = np.zeros(3, np.int64)
     counters[C_NEXT] = n
-    return (kd, work, todo, np.empty(n, np.int64), np.full(k, -1, np.int64), np.full(k, np.inf),
-            np.full(k, -1, np.int64), np.full(k, -1, np.int64), np.full(k, -1, np.int32), np.full(k, -1, np.int32),
+    return (kd, work, todo, np.empty(n, np.int64), np.full(k, -1, np.int32), np.full(k, np.inf),
+            np.full(k, -1, np.int32), np.full(k, -1, np.int32), np.full(k, -1, np.int32), np.full(k, -1, np.int32),
             counters)
 
 
@@ -208,9 +209,9 @@ def _merge_round(kd, work, todo, n_todo, todo_next, best, best_d, head, nxt, lef
         searched = todo[i]
         # The searched cluster's own pair first, then the pairs of the clusters listing it.
         a = searched
-        z = head[searched]
+        z = np.int64(head[searched])
         while True:
-            b = best[a]
+            b = np.int64(best[a])
             if slot_of[a] >= 0 and b >= 0 and slot_of[b] >= 0 and best[b] >= 0 and best_d[a] <= best_d[b]:
                 left[new] = a
                 right[new] = b
@@ -219,19 +220,19 @@ def _merge_round(kd, work, todo, n_todo, todo_next, best, best_d, head, nxt, lef
                 count += 1
                 new += 1
                 for gone in (a, b):
-                    y = head[gone]
+                    y = np.int64(head[gone])
                     while y >= 0:
                         if slot_of[y] >= 0 and best[y] == gone:
                             todo_next[count] = y
                             count += 1
                             best[y] = -2
-                        y = nxt[y]
+                        y = np.int64(nxt[y])
                 if new == k or slot_of[searched] < 0:
                     break
             if z < 0:
                 break
             a = z
-            z = nxt[z]
+            z = np.int64(nxt[z])
         if new == k:
             break
     for i in range(count):
