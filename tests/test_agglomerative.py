@@ -28,13 +28,16 @@ from lightcuts.lights.lightset import LightSet
 from lightcuts.trees.agglomerative import agglomerative, agglomerative_stats
 from lightcuts.trees.build import build_tree
 from lightcuts.trees.cones import cone_from_box
-from lightcuts.trees.kdtree import (N_EMIN, N_HMIN, N_IMIN, N_LMAX, NE_MIN, NH_MIN, NL_MAX, S_HI, S_I, S_LO, S_NHI,
-                                    S_NLO, best_matches_after_merges, kd_merge, kd_new)
+from lightcuts.trees.kdtree import (N_AXIS, N_EMIN, N_HMIN, N_IMIN, N_LMAX, NE_MIN, NH_MIN, NL_MAX, S_HI, S_I, S_LO,
+                                    S_NHI, S_NLO, SLOT_DATA, best_matches_after_merges, kd_build_threaded, kd_merge, kd_new,
+                                    kd_wants_rebuild)
 from lightcuts.trees.metrics import Metric, metric_eval
 from lightcuts.trees.registry import get_metric
 from lightcuts.trees.validate import validate_tree
 
 METRIC_NAMES = ("walter2008", "walter2005", "surface-area")
+KD_FIELDS = ("slot_f", "slot_id", "slot_of", "slot_leaf", "node_s", "node_n", "node_cnt", "leaf_start", "info",
+             "stack_node", "stack_lb", "dbuf")
 LIGHT_TYPES = ("omni", "oriented", "directional")
 
 
@@ -165,14 +168,43 @@ def test_kd_tree_storage_and_bounds_through_merges_and_rebuilds():
     position, normal, luminance = random_arrays(n, "oriented", rng, face_normals=True)
     merges = random_merges(n, n - 2, rng)
     order = rng.permutation(n)
-    kd, work = kd_new(position, normal, luminance, order, 4)
+    kd, work = kd_new(position, normal, luminance, order, 4, True)
     # Cluster i < n is light order[i].
     lights = position[order], normal[order], luminance[order]
     check_kd_tree(kd, clusters_after(*lights, merges[:0]))
     for m, (a, b) in enumerate(merges):
-        kd_merge(kd, work, a, b, n + m)
+        kd_merge(kd, work, a, b, n + m, True)
         if m % 37 == 0 or m >= n - 5:
             check_kd_tree(kd, clusters_after(*lights, merges[:m + 1]))
+
+
+@pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="needs two numba threads")
+def test_kd_rebuild_on_threads_is_the_serial_rebuild():
+    # The (re)build's subtrees go to threads from the locally-ordered builder, in turn from kd_merge:
+    # every array of the tree must come out the same.
+    rng = np.random.default_rng(12)
+    n = 3000
+    position, normal, luminance = random_arrays(n, "oriented", rng, face_normals=True)
+    merges = random_merges(n, 2500, rng)
+    order = rng.permutation(n)
+    trees = []
+    for threaded in (False, True):
+        kd, work = kd_new(position, normal, luminance, order, 8, not threaded)
+        if threaded:
+            kd_build_threaded(kd, work, parallel_min=0)
+        for m, (a, b) in enumerate(merges):
+            kd_merge(kd, work, a, b, n + m, not threaded)
+            if threaded and kd_wants_rebuild(kd):
+                kd_build_threaded(kd, work, parallel_min=0)
+        assert kd[8][1] < n  # rebuilt since the first build
+        trees.append(kd)
+    # Every written value: not the traversal scratch, nor the padding columns of the rows.
+    used = dict(slot_f=SLOT_DATA, node_s=N_AXIS + 1)
+    for name, serial, threaded in zip(KD_FIELDS, *trees):
+        if name not in ("stack_node", "stack_lb", "dbuf"):
+            width = used.get(name)
+            np.testing.assert_array_equal(serial[..., :width], threaded[..., :width], err_msg=name)
+    check_kd_tree(trees[1], clusters_after(position[order], normal[order], luminance[order], merges))
 
 
 # ------------------------------------------------------------------------------------ kd search

@@ -65,7 +65,8 @@ from numba import njit
 
 from lightcuts.errors import LightcutsError
 from lightcuts.parallel import on_threads
-from lightcuts.trees.kdtree import LEAF_SIZE, kd_best_match, kd_merge, kd_new, kd_scratch
+from lightcuts.trees.kdtree import (LEAF_SIZE, kd_best_match, kd_build_threaded, kd_merge, kd_new, kd_scratch,
+                                    kd_wants_rebuild)
 from lightcuts.trees.metrics import Metric
 from lightcuts.trees.registry import BUILDERS
 
@@ -148,10 +149,11 @@ C_NEXT, C_SEARCHES, C_ROUNDS = 0, 1, 2
 
 @njit(cache=True)
 def _rounds_start(position, normal, luminance, order, leafsize):
-    """The locally-ordered builder's state: every cluster to be searched in the first round.
+    """The locally-ordered builder's state, its kd-tree not built yet: every cluster to be searched
+    in the first round.
 
     Returns ``(kd, work, todo, todo_next, best, best_d, head, nxt, left, right, counters)``:
-    todo, todo_next : (N,) int64 clusters to search this round (kd-slot order at first), and the
+    todo, todo_next : (N,) int64 clusters to search this round, and the
         next round's; best, best_d : (2N-1,) int32 each cluster's last best match (-1: none, -2:
         gone) and its float64 d; head, nxt : (2N-1,) int32 per cluster, the singly linked list of
         the clusters whose best match it is (-1 ends it); left, right : (2N-1,) int32 children;
@@ -159,10 +161,8 @@ def _rounds_start(position, normal, luminance, order, leafsize):
     """
     n = position.shape[0]
     k = 2 * n - 1
-    kd, work = kd_new(position, normal, luminance, order, leafsize)
+    kd, work = kd_new(position, normal, luminance, order, leafsize, False)
     todo = np.empty(n, np.int64)
-    for s in range(n):
-        todo[s] = kd[1][s]
     counters = np.zeros(3, np.int64)
     counters[C_NEXT] = n
     return (kd, work, todo, np.empty(n, np.int64), np.full(k, -1, np.int32), np.full(k, np.inf),
@@ -215,7 +215,7 @@ def _merge_round(kd, work, todo, n_todo, todo_next, best, best_d, head, nxt, lef
             if slot_of[a] >= 0 and b >= 0 and slot_of[b] >= 0 and best[b] >= 0 and best_d[a] <= best_d[b]:
                 left[new] = a
                 right[new] = b
-                kd_merge(kd, work, a, b, new)
+                kd_merge(kd, work, a, b, new, False)
                 todo_next[count] = new
                 count += 1
                 new += 1
@@ -255,10 +255,16 @@ def _locally_ordered(position, normal, luminance, order, metric_id, has_cone, us
         return np.full(1, -1, np.int32), np.full(1, -1, np.int32), light, np.zeros(3, np.int64)
     kd, work, todo, todo_next, best, best_d, head, nxt, left, right, counters = _rounds_start(
         position, normal, luminance, order, leafsize)
+    kd_build_threaded(kd, work)
+    # The first round searches the clusters in slot (kd-leaf) order, for locality.
+    todo[:] = kd[1]
     n_todo = n
     while counters[C_NEXT] < left.shape[0]:
         on_threads(_search_range, n_todo, parallel_min, kd, todo, best, best_d, metric_id, has_cone, use_cone, c)
         n_todo = _merge_round(kd, work, todo, n_todo, todo_next, best, best_d, head, nxt, left, right, counters)
+        # Between rounds, so that the rebuild runs on the threads too.
+        if kd_wants_rebuild(kd):
+            kd_build_threaded(kd, work)
     return left, right, light, counters
 
 
@@ -274,7 +280,7 @@ def _agglomerate_heap(position, normal, luminance, order, metric_id, has_cone, u
     stats = np.zeros(2, np.int64)
     if n == 1:
         return left, right, light, stats
-    kd, work = kd_new(position, normal, luminance, order, leafsize)
+    kd, work = kd_new(position, normal, luminance, order, leafsize, True)
     slot_of = kd[2]
     new = np.int64(n)
     # Live entries never exceed the active clusters: each pop pushes at most one entry.
@@ -302,7 +308,7 @@ def _agglomerate_heap(position, normal, luminance, order, metric_id, has_cone, u
             continue
         left[new] = a
         right[new] = b
-        kd_merge(kd, work, a, b, new)
+        kd_merge(kd, work, a, b, new, True)
         if new < k - 1:
             b, d = kd_best_match(kd, new, metric_id, has_cone, use_cone, c)
             stats[0] += 1

@@ -82,6 +82,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from lightcuts.parallel import on_threads
 from lightcuts.rounding import down32, up32
 from lightcuts.trees.cones import cone_from_box
 from lightcuts.trees.metrics import metric_eval
@@ -107,6 +108,11 @@ _STACK = 128
 # Added to the cone-cosine bound: exceeds cone_from_box's rounding except for boxes whose centre is
 # within ~1e-7 of the origin, whose cones are near the full sphere anyway.
 _COS_SLACK = 1e-9
+# A (re)build splits this many levels on one thread, then hands the 2^levels subtrees below to
+# threads (from kd_build_threaded) or does them in turn (kd_build): the same tree either way.
+_TOP_LEVELS = 3
+# Smallest (re)build worth starting threads for.
+_PARALLEL_BUILD_MIN = 50000
 
 
 @njit(cache=True)
@@ -208,14 +214,62 @@ def _leaf_bounds(slot_f, s0, s1, node_s, node_n, k):
 
 
 @njit(cache=True)
-def kd_build(kd, keys, idx, trow):
-    """(Re)build the kd-tree over the active slots, in place.
+def _split_node(keys, idx, rs, re, cell, node_s, k):
+    """Node k's split: the median of its range's centres along the longest side of its cell; sets
+    its children's ranges and cells. Touches only node k's range of ``keys`` and ``idx``."""
+    s = rs[k]
+    e = re[k]
+    mid = (s + e) // 2
+    axis = 0
+    for t in range(1, 3):
+        if cell[k, 3 + t] - cell[k, t] > cell[k, 3 + axis] - cell[k, axis]:
+            axis = t
+    if e - s > 1:
+        _select(keys, idx, axis, s, e - 1, mid)
+    split = keys[mid, axis] if mid < e else cell[k, axis]
+    node_s[k, N_AXIS] = axis
+    node_s[k, N_SPLIT] = split
+    for child in range(2 * k + 1, 2 * k + 3):
+        for t in range(6):
+            cell[child, t] = cell[k, t]
+    cell[2 * k + 1, 3 + axis] = split
+    cell[2 * k + 2, axis] = split
+    rs[2 * k + 1] = s
+    re[2 * k + 1] = mid
+    rs[2 * k + 2] = mid
+    re[2 * k + 2] = e
 
-    kd : the tuple from :func:`kd_new`; its active slots are compacted to the front, reordered into
-        kd leaves, and every node bound is recomputed exactly (then rounded outwards).
-    keys (S, 3) float64, idx (S,) int32, trow (SLOT_WIDTH,) float64 : workspace
+
+@njit(cache=True)
+def _join_bounds(node_s, node_n, node_cnt, k):
+    """Node k's bounds and count from its two children's (float32 min/max is exact)."""
+    a = 2 * k + 1
+    b = a + 1
+    for t in range(3):
+        node_s[k, N_HMIN + t] = min(node_s[a, N_HMIN + t], node_s[b, N_HMIN + t])
+        node_s[k, N_LMAX + t] = max(node_s[a, N_LMAX + t], node_s[b, N_LMAX + t])
+        node_s[k, N_EMIN + t] = min(node_s[a, N_EMIN + t], node_s[b, N_EMIN + t])
+        node_n[k, NH_MIN + t] = min(node_n[a, NH_MIN + t], node_n[b, NH_MIN + t])
+        node_n[k, NL_MAX + t] = max(node_n[a, NL_MAX + t], node_n[b, NL_MAX + t])
+        node_n[k, NE_MIN + t] = min(node_n[a, NE_MIN + t], node_n[b, NE_MIN + t])
+    node_s[k, N_IMIN] = min(node_s[a, N_IMIN], node_s[b, N_IMIN])
+    node_cnt[k] = node_cnt[a] + node_cnt[b]
+
+
+@njit(cache=True)
+def _top_levels(depth):
+    """Levels split before the rest of the build is cut into 2^levels independent subtrees."""
+    return min(depth, _TOP_LEVELS)
+
+
+@njit(cache=True)
+def kd_build_start(kd, work):
+    """First part of a (re)build: compact the active slots, split the top levels of the tree.
+
+    Returns ``(rs, re, cell)``, each node's slot range and cell, for :func:`kd_build_subtrees`.
     """
     slot_f, slot_id, slot_of, slot_leaf, node_s, node_n, node_cnt, leaf_start, info = kd[:9]
+    keys, idx = work[0], work[1]
     # Compact: active rows to the front (only the old leaf ranges hold rows). n starts as a typed
     # zero: a literal 0 would make numba compile an extra specialisation of _depth for it.
     n = np.int64(0)
@@ -249,85 +303,119 @@ def kd_build(kd, keys, idx, trow):
         for u in range(n):
             cell[0, t] = min(cell[0, t], keys[u, t])
             cell[0, 3 + t] = max(cell[0, 3 + t], keys[u, t])
-    for k in range(first_leaf):
-        s = rs[k]
-        e = re[k]
-        mid = (s + e) // 2
-        axis = 0
-        for t in range(1, 3):
-            if cell[k, 3 + t] - cell[k, t] > cell[k, 3 + axis] - cell[k, axis]:
-                axis = t
-        if e - s > 1:
-            _select(keys, idx, axis, s, e - 1, mid)
-        split = keys[mid, axis] if mid < e else cell[k, axis]
-        node_s[k, N_AXIS] = axis
-        node_s[k, N_SPLIT] = split
-        for child in range(2 * k + 1, 2 * k + 3):
-            for t in range(6):
-                cell[child, t] = cell[k, t]
-        cell[2 * k + 1, 3 + axis] = split
-        cell[2 * k + 2, axis] = split
-        rs[2 * k + 1] = s
-        re[2 * k + 1] = mid
-        rs[2 * k + 2] = mid
-        re[2 * k + 2] = e
-    n_leaves = first_leaf + 1
-    for j in range(n_leaves):
-        leaf_start[j] = rs[first_leaf + j]
-        for s in range(rs[first_leaf + j], re[first_leaf + j]):
-            slot_leaf[s] = first_leaf + j
-    leaf_start[n_leaves] = n
-    # Apply the permutation (row s <- row idx[s]) in place by following its cycles.
-    for s in range(n):
-        if idx[s] < 0 or idx[s] == s:
-            continue
-        for t in range(SLOT_DATA):
-            trow[t] = slot_f[s, t]
-        tid = slot_id[s]
-        j = s
-        while True:
-            k = idx[j]
-            idx[j] = -1
-            if k == s:
-                for t in range(SLOT_DATA):
-                    slot_f[j, t] = trow[t]
-                slot_id[j] = tid
-                break
+    for k in range((1 << _top_levels(depth)) - 1):
+        _split_node(keys, idx, rs, re, cell, node_s, k)
+    return rs, re, cell
+
+
+@njit(cache=True, nogil=True)
+def kd_build_subtrees(kd, work, rs, re, cell, s, e):
+    """Second part of a (re)build, for the subtrees s..e-1 below the top levels (2^levels of them,
+    disjoint in nodes and slots, so threads may take different ones): their splits, their rows
+    gathered into the workspace in leaf order, their leaves' ranges."""
+    slot_f, slot_id, slot_leaf, node_s, leaf_start, info = kd[0], kd[1], kd[3], kd[4], kd[7], kd[8]
+    keys, idx, slot_tmp, id_tmp = work
+    first_leaf = info[I_FIRST_LEAF]
+    depth = _depth(info[I_BUILT], info[I_LEAFSIZE])
+    top = _top_levels(depth)
+    below = depth - top
+    for j in range(s, e):
+        root = (1 << top) - 1 + j
+        for level in range(below):
+            first = ((root + 1) << level) - 1
+            for k in range(first, first + (1 << level)):
+                _split_node(keys, idx, rs, re, cell, node_s, k)
+        # Row u of the rebuilt tree is the old row idx[u]: a gather, which each subtree does for its
+        # own rows (an in-place permutation would follow cycles across subtrees).
+        for u in range(rs[root], re[root]):
+            v = idx[u]
             for t in range(SLOT_DATA):
-                slot_f[j, t] = slot_f[k, t]
-            slot_id[j] = slot_id[k]
-            j = k
-    for s in range(n):
-        slot_of[slot_id[s]] = s
-    for s in range(n, slot_id.shape[0]):
-        slot_id[s] = -1
-    # Node bounds: leaves from their rows, then parents from children (float32 min/max is exact).
-    for j in range(n_leaves):
-        _leaf_bounds(slot_f, leaf_start[j], leaf_start[j + 1], node_s, node_n, first_leaf + j)
-        node_cnt[first_leaf + j] = leaf_start[j + 1] - leaf_start[j]
-    for k in range(first_leaf - 1, -1, -1):
-        a = 2 * k + 1
-        b = a + 1
-        for t in range(3):
-            node_s[k, N_HMIN + t] = min(node_s[a, N_HMIN + t], node_s[b, N_HMIN + t])
-            node_s[k, N_LMAX + t] = max(node_s[a, N_LMAX + t], node_s[b, N_LMAX + t])
-            node_s[k, N_EMIN + t] = min(node_s[a, N_EMIN + t], node_s[b, N_EMIN + t])
-            node_n[k, NH_MIN + t] = min(node_n[a, NH_MIN + t], node_n[b, NH_MIN + t])
-            node_n[k, NL_MAX + t] = max(node_n[a, NL_MAX + t], node_n[b, NL_MAX + t])
-            node_n[k, NE_MIN + t] = min(node_n[a, NE_MIN + t], node_n[b, NE_MIN + t])
-        node_s[k, N_IMIN] = min(node_s[a, N_IMIN], node_s[b, N_IMIN])
-        node_cnt[k] = node_cnt[a] + node_cnt[b]
+                slot_tmp[u, t] = slot_f[v, t]
+            id_tmp[u] = slot_id[v]
+        leaf0 = ((root + 1) << below) - 1
+        for leaf in range(leaf0, leaf0 + (1 << below)):
+            leaf_start[leaf - first_leaf] = rs[leaf]
+            for u in range(rs[leaf], re[leaf]):
+                slot_leaf[u] = leaf
+
+
+@njit(cache=True, nogil=True)
+def kd_build_bounds(kd, work, rs, re, s, e):
+    """Third part of a (re)build, for the subtrees s..e-1 (after every gather): rows back from the
+    workspace, ``slot_of``, every node bound of the subtrees."""
+    slot_f, slot_id, slot_of, slot_leaf, node_s, node_n, node_cnt, leaf_start, info = kd[:9]
+    slot_tmp, id_tmp = work[2], work[3]
+    first_leaf = info[I_FIRST_LEAF]
+    depth = _depth(info[I_BUILT], info[I_LEAFSIZE])
+    top = _top_levels(depth)
+    below = depth - top
+    for j in range(s, e):
+        root = (1 << top) - 1 + j
+        for u in range(rs[root], re[root]):
+            for t in range(SLOT_DATA):
+                slot_f[u, t] = slot_tmp[u, t]
+            slot_id[u] = id_tmp[u]
+            slot_of[id_tmp[u]] = u
+        leaf0 = ((root + 1) << below) - 1
+        for leaf in range(leaf0, leaf0 + (1 << below)):
+            _leaf_bounds(slot_f, rs[leaf], re[leaf], node_s, node_n, leaf)
+            node_cnt[leaf] = re[leaf] - rs[leaf]
+        for level in range(below - 1, -1, -1):
+            first = ((root + 1) << level) - 1
+            for k in range(first, first + (1 << level)):
+                _join_bounds(node_s, node_n, node_cnt, k)
 
 
 @njit(cache=True)
-def kd_new(position, normal, luminance, order, leafsize):
+def kd_build_finish(kd):
+    """Last part of a (re)build: the top levels' bounds, the leaf table's end, the empty slots."""
+    slot_id, node_s, node_n, node_cnt, leaf_start, info = kd[1], kd[4], kd[5], kd[6], kd[7], kd[8]
+    n = info[I_BUILT]
+    depth = _depth(n, info[I_LEAFSIZE])
+    for k in range((1 << _top_levels(depth)) - 2, -1, -1):
+        _join_bounds(node_s, node_n, node_cnt, k)
+    leaf_start[info[I_FIRST_LEAF] + 1] = n
+    for s in range(n, slot_id.shape[0]):
+        slot_id[s] = -1
+
+
+@njit(cache=True)
+def kd_build(kd, work):
+    """(Re)build the kd-tree over the active slots, in place, on this thread.
+
+    kd, work : the tuples from :func:`kd_new`; the active slots are compacted to the front,
+        reordered into kd leaves, and every node bound is recomputed exactly (then rounded
+        outwards). :func:`kd_build_threaded` does the same on the numba threads.
+    """
+    rs, re, cell = kd_build_start(kd, work)
+    subtrees = np.int64(1) << _top_levels(_depth(kd[8][I_BUILT], kd[8][I_LEAFSIZE]))
+    kd_build_subtrees(kd, work, rs, re, cell, 0, subtrees)
+    kd_build_bounds(kd, work, rs, re, 0, subtrees)
+    kd_build_finish(kd)
+
+
+def kd_build_threaded(kd, work, parallel_min: int = _PARALLEL_BUILD_MIN) -> None:
+    """:func:`kd_build` with its subtrees on the numba threads (the same tree, whatever their number),
+    for trees of at least ``parallel_min`` active clusters."""
+    rs, re, cell = kd_build_start(kd, work)
+    info = kd[8]
+    subtrees = 1 << int(_top_levels(_depth(info[I_BUILT], info[I_LEAFSIZE])))
+    min_n = 2 if info[I_BUILT] >= parallel_min else subtrees + 1
+    on_threads(kd_build_subtrees, subtrees, min_n, kd, work, rs, re, cell)
+    on_threads(kd_build_bounds, subtrees, min_n, kd, work, rs, re)
+    kd_build_finish(kd)
+
+
+@njit(cache=True)
+def kd_new(position, normal, luminance, order, leafsize, build):
     """The kd-tree over N single-light clusters (cluster i = light ``order[i]``), and its build workspace.
 
     position, normal : (N, 3) float64; luminance : (N,) float64; order : (N,) int64 permutation;
     leafsize : int >= 2
     Returns ``(kd, work)``: ``kd = (slot_f, slot_id, slot_of, slot_leaf, node_s, node_n, node_cnt,
     leaf_start, info, stack_node, stack_lb, dbuf)`` as described in the module docstring
-    (``slot_of`` has room for the 2N-1 cluster ids of a full tree), ``work = (keys, idx, trow)``.
+    (``slot_of`` has room for the 2N-1 cluster ids of a full tree), ``work = (keys, idx, slot_tmp,
+    id_tmp)``. build : False leaves the tree to the caller (:func:`kd_build_threaded`).
     """
     n = position.shape[0]
     slot_f = _rows_f64(n, SLOT_WIDTH)
@@ -350,8 +438,9 @@ def kd_new(position, normal, luminance, order, leafsize):
     kd = (slot_f, slot_id, slot_of, np.empty(n, np.int32), _rows_f32(n_nodes, NODE_WIDTH),
           _rows_f32(n_nodes, NORMAL_WIDTH), np.zeros(n_nodes, np.int32), np.zeros((1 << depth) + 1, np.int64), info,
           np.empty(_STACK, np.int64), np.empty(_STACK), np.empty(leafsize))
-    work = (np.empty((n, 3)), np.empty(n, np.int32), np.empty(SLOT_WIDTH))
-    kd_build(kd, work[0], work[1], work[2])
+    work = (np.empty((n, 3)), np.empty(n, np.int32), np.empty((n, SLOT_WIDTH)), np.empty(n, np.int32))
+    if build:
+        kd_build(kd, work)
     return kd, work
 
 
@@ -510,10 +599,11 @@ def kd_best_match(kd, a, metric_id, has_cone, use_cone, c):
 
 
 @njit(cache=True)
-def kd_merge(kd, work, a, b, new_id):
+def kd_merge(kd, work, a, b, new_id, rebuild):
     """Replace active clusters a and b by their union ``new_id`` (see the module docstring).
 
-    Rebuilds the tree when the active clusters have halved since the last build.
+    rebuild : rebuild the tree here when the active clusters have halved since the last build
+    (False: the caller does, see :func:`kd_wants_rebuild`).
     """
     slot_f, slot_id, slot_of, slot_leaf, node_s, node_n, node_cnt, leaf_start, info = kd[:9]
     sa = slot_of[a]
@@ -554,8 +644,15 @@ def kd_merge(kd, work, a, b, new_id):
         if k == 0:
             break
         k = (k - 1) >> 1
-    if 2 * info[I_ACTIVE] <= info[I_BUILT] and info[I_ACTIVE] > 1:
-        kd_build(kd, work[0], work[1], work[2])
+    if rebuild and kd_wants_rebuild(kd):
+        kd_build(kd, work)
+
+
+@njit(cache=True)
+def kd_wants_rebuild(kd):
+    """Whether the active clusters have halved since the last (re)build."""
+    info = kd[8]
+    return 2 * info[I_ACTIVE] <= info[I_BUILT] and info[I_ACTIVE] > 1
 
 
 @njit(cache=True, nogil=True)
@@ -568,9 +665,9 @@ def kd_scratch(kd):
 @njit(cache=True)
 def _best_matches_after(position, normal, luminance, merges, metric_id, has_cone, use_cone, c, leafsize):
     n = position.shape[0]
-    kd, work = kd_new(position, normal, luminance, np.arange(position.shape[0]), leafsize)
+    kd, work = kd_new(position, normal, luminance, np.arange(position.shape[0]), leafsize, True)
     for m in range(merges.shape[0]):
-        kd_merge(kd, work, merges[m, 0], merges[m, 1], n + m)
+        kd_merge(kd, work, merges[m, 0], merges[m, 1], n + m, True)
     active = np.flatnonzero(kd[2] >= 0)
     best = np.empty(active.shape[0], np.int64)
     best_d = np.empty(active.shape[0])
