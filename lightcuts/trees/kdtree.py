@@ -343,9 +343,8 @@ def kd_build_subtrees(kd, work, rs, re, cell, s, e):
 def kd_build_bounds(kd, work, rs, re, s, e):
     """Third part of a (re)build, for the subtrees s..e-1 (after every gather): rows back from the
     workspace, ``slot_of``, every node bound of the subtrees."""
-    slot_f, slot_id, slot_of, slot_leaf, node_s, node_n, node_cnt, leaf_start, info = kd[:9]
+    slot_f, slot_id, slot_of, node_s, node_n, node_cnt, info = kd[0], kd[1], kd[2], kd[4], kd[5], kd[6], kd[8]
     slot_tmp, id_tmp = work[2], work[3]
-    first_leaf = info[I_FIRST_LEAF]
     depth = _depth(info[I_BUILT], info[I_LEAFSIZE])
     top = _top_levels(depth)
     below = depth - top
