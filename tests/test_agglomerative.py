@@ -28,8 +28,8 @@ from lightcuts.lights.lightset import LightSet
 from lightcuts.trees.agglomerative import agglomerative, agglomerative_stats
 from lightcuts.trees.build import build_tree
 from lightcuts.trees.cones import cone_from_box
-from lightcuts.trees.kdtree import (N_AXIS, N_EMIN, N_HMIN, N_IMIN, N_LMAX, NE_MIN, NH_MIN, NL_MAX, S_HI, S_I, S_LO,
-                                    S_NHI, S_NLO, SLOT_DATA, best_matches_after_merges, kd_build_threaded, kd_merge, kd_new,
+from lightcuts.trees.kdtree import (N_AXIS, N_EMIN, N_HMIN, N_IMIN, N_LMAX, N_SPLIT, NE_MIN, NH_MIN, NL_MAX, S_HI,
+                                    S_I, S_LO, S_NHI, S_NLO, SLOT_DATA, best_matches_after_merges, kd_build_threaded, kd_merge, kd_new,
                                     kd_wants_rebuild)
 from lightcuts.trees.metrics import Metric, metric_eval
 from lightcuts.trees.registry import get_metric
@@ -148,7 +148,7 @@ def check_kd_tree(kd, clusters):
             # Every node on the path bounds the cluster (float32 values widen exactly to float64).
             k = leaf
             while True:
-                row = node_s[k].astype(np.float64)
+                row = node_s[k, :N_SPLIT].astype(np.float64)
                 nrow = node_n[k].astype(np.float64)
                 assert (hi[c] >= row[N_HMIN:N_HMIN + 3]).all() and (lo[c] <= row[N_LMAX:N_LMAX + 3]).all()
                 assert (hi[c] - lo[c] >= row[N_EMIN:N_EMIN + 3]).all() and inten[c] >= row[N_IMIN]
@@ -192,18 +192,24 @@ def test_kd_rebuild_on_threads_is_the_serial_rebuild():
         kd, work = kd_new(position, normal, luminance, order, 8, not threaded)
         if threaded:
             kd_build_threaded(kd, work, parallel_min=0)
+        internal = int(kd[8][0])
         for m, (a, b) in enumerate(merges):
             kd_merge(kd, work, a, b, n + m, not threaded)
             if threaded and kd_wants_rebuild(kd):
                 kd_build_threaded(kd, work, parallel_min=0)
         assert kd[8][1] < n  # rebuilt since the first build
         trees.append(kd)
-    # Every written value: not the traversal scratch, nor the padding columns of the rows.
-    used = dict(slot_f=SLOT_DATA, node_s=N_AXIS + 1)
+    # Every written value: not the traversal scratch, the padding columns of the rows, nor the split
+    # columns of nodes that were never internal.
     for name, serial, threaded in zip(KD_FIELDS, *trees):
+        if name == "slot_f":
+            serial, threaded = serial[:, :SLOT_DATA], threaded[:, :SLOT_DATA]
+        elif name == "node_s":
+            np.testing.assert_array_equal(serial[:internal, N_SPLIT:N_AXIS + 1],
+                                          threaded[:internal, N_SPLIT:N_AXIS + 1])
+            serial, threaded = serial[:, :N_SPLIT], threaded[:, :N_SPLIT]
         if name not in ("stack_node", "stack_lb", "dbuf"):
-            width = used.get(name)
-            np.testing.assert_array_equal(serial[..., :width], threaded[..., :width], err_msg=name)
+            np.testing.assert_array_equal(serial, threaded, err_msg=name)
     check_kd_tree(trees[1], clusters_after(position[order], normal[order], luminance[order], merges))
 
 
