@@ -38,7 +38,9 @@ update: C's upper ends, extents and intensity are >= those of the cluster whose 
 lower ends <=, so ``hmin``, ``emin``, ``imin`` (minima) and ``lmax`` (a maximum) still hold, as
 they do when a cluster is removed (they only become loose). When the active clusters fall to half
 of those at the last build, the tree is rebuilt over them (amortised O(N log N) in all), which
-restores tight bounds.
+restores tight bounds. A (re)build splits the top three levels, then handles the eight subtrees
+below them independently (splits, rows gathered into the workspace in leaf order, bounds), in turn
+(:func:`kd_build`) or on the numba threads (:func:`kd_build_threaded`), with the same result.
 
 Lower bound of d(A u B) over the clusters B under a node
 --------------------------------------------------------
