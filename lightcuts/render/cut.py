@@ -27,8 +27,8 @@ the heap were called functions (LLVM declined to inline calls with 15-40 scalar 
 profile showed the time in divisions and square roots waiting on each other. Now: every device
 function of the loop is ``forceinline`` (LLVM ``alwaysinline``; about 20% alone), the bound is a
 ratio with one division (lightcuts.render.bounds, "Evaluation"), without unpredictable branches,
-and the loop computes both children's bounds before the shadow ray and the heap, so that the
-two bounds and the light row's load can overlap; the heap's branches come last. Measured
+and the loop computes both children's bounds first, so that the two bounds and the light row's
+load can overlap. Measured
 (benchmarks/bench_render.py, 512 x 512, two threads, on cores shared with other work, back to
 back): CPU time of the full render 35.0 s -> 23.5-24.6 s, wall 18.6 s -> 12.5-12.8 s. By the
 benchmark's split (full minus no-visibility) shadow rays are now about 40% of the CPU time; in a
@@ -45,6 +45,19 @@ the shared cores vary by 15%): prefetching the children's records of a node ente
 (``llvm.prefetch``). Evaluating bounds lazily (children keyed by the parent's bound until they
 reach the top) computed fewer bounds but was about 17% slower: the extra heap work costs more
 than the bounds it saves.
+
+The heap is updated right after the two bounds, before the representative's shadow ray (its
+order depends on the bounds only), and indexes with unsigned integers: numba tests every signed
+index for a negative value to wrap around, three instructions on the sift's chain of dependent
+loads at every level. Together about 4% less CPU time for the whole image (one thread, the two
+versions alternating band by band on one core, twice; alone: about 1% and nothing). Images are
+unchanged (the same operations in the same order). Tried on top of that without a gain (same
+method, noise about 2%): computing the next top's children's bounds one refinement ahead,
+before the shadow ray, for the processor to overlap with Embree's traversal (5% slower); a 4-ary
+heap (1%, within the noise); choosing the child that needs a new light by selects instead of a
+branch per side (1-2% slower); unsigned node ids in :func:`node_bound`, a select instead of its
+leaf branch, and ``llvm.prefetch`` of both children's light rows before the bounds (a profile
+shows that row's load waiting on memory; no change either way).
 
 Scratch (one set per thread, reused across receivers), ``cap = max(max_cut, n_roots) + 2``
 (the heap keeps a -inf sentinel after its last entry):
@@ -392,10 +405,12 @@ def node_bound(k, node_b, node_bi, x0, x1, x2, n0, n1, n2, r0, r1, r2, fr, rd0, 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
 def _heap_push(heap_key, heap_slot, size, key, slot):
-    """Insert (key, slot) into the max-heap of ``size`` entries; returns the new size."""
-    i = size
+    """Insert (key, slot) into the max-heap of ``size`` entries; returns the new size. Indices are
+    unsigned (no wraparound test: module docstring); every operand is uint64, as numba makes a
+    float64 of a mix of signed and unsigned integers."""
+    i = np.uint64(size)
     while i > 0:
-        parent = (i - 1) >> 1
+        parent = (i - np.uint64(1)) >> np.uint64(1)
         if heap_key[parent] >= key:
             break
         heap_key[i] = heap_key[parent]
@@ -410,12 +425,14 @@ def _heap_push(heap_key, heap_slot, size, key, slot):
 def _sift_down(heap_key, heap_slot, size, key, slot):
     """Put (key, slot) at the top of the max-heap of ``size`` entries (replacing the top) and sift it
     down; returns size. heap_key[size] must be -inf (the sentinel: no test for a missing right child)."""
-    i = 0
+    i = np.uint64(0)
+    n = np.uint64(size)
+    one = np.uint64(1)
     while True:
-        child = 2 * i + 1
-        if child >= size:
+        child = i + i + one
+        if child >= n:
             break
-        child += heap_key[child + 1] > heap_key[child]
+        child += np.uint64(heap_key[child + one] > heap_key[child])
         if heap_key[child] <= key:
             break
         heap_key[i] = heap_key[child]
@@ -482,12 +499,27 @@ def lightcut(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, e
         t2 -= pm2 * node_b[k, NB_I + 2]
         prep = node_bi[k, NB_REP]
         left = np.int64(node_bi[k, NB_LEFT])  # siblings are side by side (build_forest)
-        # Both children's bounds first: pure arithmetic, independent of each other and of the
-        # shadow ray, so the processor overlaps them; the heap's branches come last.
+        # Both children's bounds first: pure arithmetic, independent of each other, so the
+        # processor overlaps them.
         bl = node_bound(left, node_b, node_bi, x0, x1, x2, n0, n1, n2, r0, r1, r2, fr, rd0, rd1, rd2, rs0, rs1, rs2,
                         exponent, clamp_d2)
         br = node_bound(left + 1, node_b, node_bi, x0, x1, x2, n0, n1, n2, r0, r1, r2, fr, rd0, rd1, rd2, rs0, rs1,
                         rs2, exponent, clamp_d2)
+        # The heap first (it needs the bounds only), then the children's lights and shadow ray. Heap
+        # order: the left child (if it has a bound) takes the top, then the right.
+        if bl > 0.0:
+            _sift_down(heap_key, heap_slot, size, bl, s)
+            if br > 0.0:
+                size = _heap_push(heap_key, heap_slot, size, br, n_slots)
+                heap_key[size] = -np.inf
+        elif br > 0.0:
+            _sift_down(heap_key, heap_slot, size, br, n_slots)
+        else:  # no child entered the heap: the last entry fills the top
+            size -= 1
+            key = heap_key[size]
+            heap_key[size] = -np.inf
+            if size > 0:
+                _sift_down(heap_key, heap_slot, size, key, heap_slot[size])
         for side in range(2):
             c = left + side
             # The left child takes the parent's slot, the right child a new one.
@@ -514,20 +546,6 @@ def lightcut(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, e
             t0 += m0 * node_b[c, NB_I]
             t1 += m1 * node_b[c, NB_I + 1]
             t2 += m2 * node_b[c, NB_I + 2]
-        # Heap order as before: the left child (if it has a bound) takes the top, then the right.
-        if bl > 0.0:
-            _sift_down(heap_key, heap_slot, size, bl, s)
-            if br > 0.0:
-                size = _heap_push(heap_key, heap_slot, size, br, n_slots)
-                heap_key[size] = -np.inf
-        elif br > 0.0:
-            _sift_down(heap_key, heap_slot, size, br, n_slots)
-        else:  # no child entered the heap: the last entry fills the top
-            size -= 1
-            key = heap_key[size]
-            heap_key[size] = -np.inf
-            if size > 0:
-                _sift_down(heap_key, heap_slot, size, key, heap_slot[size])
         n_slots += 1
 
     # The final sum again, from the cut itself: the running total above drifts by cancellation.
