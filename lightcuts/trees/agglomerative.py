@@ -149,8 +149,8 @@ C_NEXT, C_SEARCHES, C_ROUNDS = 0, 1, 2
 
 @njit(cache=True)
 def _rounds_start(position, normal, luminance, order, leafsize):
-    """The locally-ordered builder's state, its kd-tree not built yet: every cluster to be searched
-    in the first round.
+    """The locally-ordered builder's state, its kd-tree not built yet (the caller builds it, on the
+    threads, and fills ``todo``).
 
     Returns ``(kd, work, todo, todo_next, best, best_d, head, nxt, left, right, counters)``:
     todo, todo_next : (N,) int64 clusters to search this round, and the
