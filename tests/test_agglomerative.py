@@ -29,8 +29,8 @@ from lightcuts.trees.agglomerative import agglomerative, agglomerative_stats
 from lightcuts.trees.build import build_tree
 from lightcuts.trees.cones import cone_from_box
 from lightcuts.trees.kdtree import (N_AXIS, N_EMIN, N_HMIN, N_IMIN, N_LMAX, N_SPLIT, NE_MIN, NH_MIN, NL_MAX, S_HI,
-                                    S_I, S_LO, S_NHI, S_NLO, SLOT_DATA, best_matches_after_merges, kd_build_threaded, kd_merge, kd_new,
-                                    kd_wants_rebuild)
+                                    S_I, S_LO, S_NHI, S_NLO, SLOT_DATA, best_matches_after_merges, kd_build_threaded,
+                                    kd_merge, kd_new, kd_wants_rebuild)
 from lightcuts.trees.metrics import Metric, metric_eval
 from lightcuts.trees.registry import get_metric
 from lightcuts.trees.validate import validate_tree
@@ -111,8 +111,7 @@ def brute_force(metric, has_cone, c, clusters):
 def check_against_brute_force(position, normal, luminance, light_type, metric_name, c, merges, leafsize):
     metric = get_metric(metric_name)
     has_cone = light_type == "oriented"
-    active, best, d = best_matches_after_merges(position, normal, luminance, has_cone, metric, c, merges,
-                                                   leafsize)
+    active, best, d = best_matches_after_merges(position, normal, luminance, has_cone, metric, c, merges, leafsize)
     table = brute_force(metric, has_cone, c, clusters_after(position, normal, luminance, merges))
     assert sorted(table) == list(active)
     for a, b, value in zip(active, best, d):

@@ -151,8 +151,8 @@ def pack_nodes(node_f: np.ndarray, node_k: np.ndarray) -> tuple[np.ndarray, np.n
         raise LightcutsError(f"trees: {k} nodes exceed the kernel's int32 node ids")
     node_b = cache_aligned_zeros((k, NB_WIDTH), np.float32)
     node_bi = node_b.view(np.int32)
-    on_threads(_pack, k, _PARALLEL_MIN, np.ascontiguousarray(node_f, np.float64), np.ascontiguousarray(node_k, np.int64), node_b,
-               node_bi)
+    on_threads(_pack, k, _PARALLEL_MIN, np.ascontiguousarray(node_f, np.float64),
+               np.ascontiguousarray(node_k, np.int64), node_b, node_bi)
     return node_b, node_bi
 
 
