@@ -21,15 +21,13 @@ numbers its nodes, and two builders that produce the same clusters get the same 
 
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
-
 import numpy as np
 from numba import njit
 
 from lightcuts.errors import LightcutsError
 from lightcuts.hashing import mix64 as _mix64
 from lightcuts.lights.lightset import LUMINANCE, LightSet
-from lightcuts.parallel import balance, on_threads, threads_for
+from lightcuts.parallel import balance, on_threads, run_all, threads_for
 from lightcuts.trees.cones import cone_from_box
 from lightcuts.trees.metrics import Metric, as_metric
 from lightcuts.trees.registry import get_builder, get_metric
@@ -470,8 +468,7 @@ def _fill_nodes(order, size, left, right, light, position, normal, intensity, lu
     tasks, tops = _fill_tasks(order, size, max(k // (8 * threads), _FILL_BLOCK))
     args = (left, right, light, position, normal, intensity, luminance, seed, bbox_min, bbox_max, nlo, nhi,
             node_intensity, lum, first, rep)
-    with ThreadPoolExecutor(threads) as pool:
-        list(pool.map(lambda g: _fill_ranges(order, tasks[g], *args), balance(tasks[:, 1] - tasks[:, 0], threads)))
+    run_all(lambda g: _fill_ranges(order, tasks[g], *args), balance(tasks[:, 1] - tasks[:, 0], threads))
     _fill_ranges(order, np.stack([tops, tops + 1], axis=1), *args)
     if oriented:
         on_threads(_fill_cones, k, _PARALLEL_MIN, nlo, nhi, cone_axis, cone_cos)

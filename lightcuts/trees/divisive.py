@@ -19,12 +19,10 @@ order, sequentially in memory.
 
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
-
 import numpy as np
 from numba import njit
 
-from lightcuts.parallel import balance, threads_for
+from lightcuts.parallel import balance, run_all, threads_for
 from lightcuts.trees.registry import BUILDERS
 
 _INF = np.inf
@@ -218,9 +216,8 @@ def _divisive(position, normal, c):
     cut = n // (4 * threads) if threads > 1 else 0
     tasks, boxes = _subtrees(pts, perm, root, box, cut, left, right, light)
     if len(tasks):
-        with ThreadPoolExecutor(threads) as pool:
-            list(pool.map(lambda g: _subtrees(pts, perm, tasks[g], boxes[g], 0, left, right, light),
-                          balance(tasks[:, 2] - tasks[:, 1], threads)))
+        run_all(lambda g: _subtrees(pts, perm, tasks[g], boxes[g], 0, left, right, light),
+                balance(tasks[:, 2] - tasks[:, 1], threads))
     return left, right, light
 
 
