@@ -259,9 +259,12 @@ def _join_bounds(node_s, node_n, node_cnt, k):
 
 
 @njit(cache=True)
-def _top_levels(depth):
-    """Levels split before the rest of the build is cut into 2^levels independent subtrees."""
-    return min(depth, _TOP_LEVELS)
+def _levels(info):
+    """``(top, below)`` of the tree of the last (re)build: the levels split before the rest is cut
+    into 2^top independent subtrees, and the levels of each subtree below its root."""
+    depth = _depth(info[I_BUILT], info[I_LEAFSIZE])
+    top = min(depth, _TOP_LEVELS)
+    return top, depth - top
 
 
 @njit(cache=True)
@@ -305,7 +308,7 @@ def kd_build_start(kd, work):
         for u in range(n):
             cell[0, t] = min(cell[0, t], keys[u, t])
             cell[0, 3 + t] = max(cell[0, 3 + t], keys[u, t])
-    for k in range((1 << _top_levels(depth)) - 1):
+    for k in range((1 << _levels(info)[0]) - 1):
         _split_node(keys, idx, rs, re, cell, node_s, k)
     return rs, re, cell
 
@@ -318,9 +321,7 @@ def kd_build_subtrees(kd, work, rs, re, cell, s, e):
     slot_f, slot_id, slot_leaf, node_s, leaf_start, info = kd[0], kd[1], kd[3], kd[4], kd[7], kd[8]
     keys, idx, slot_tmp, id_tmp = work
     first_leaf = info[I_FIRST_LEAF]
-    depth = _depth(info[I_BUILT], info[I_LEAFSIZE])
-    top = _top_levels(depth)
-    below = depth - top
+    top, below = _levels(info)
     for j in range(s, e):
         root = (1 << top) - 1 + j
         for level in range(below):
@@ -347,9 +348,7 @@ def kd_build_bounds(kd, work, rs, re, s, e):
     workspace, ``slot_of``, every node bound of the subtrees."""
     slot_f, slot_id, slot_of, node_s, node_n, node_cnt, info = kd[0], kd[1], kd[2], kd[4], kd[5], kd[6], kd[8]
     slot_tmp, id_tmp = work[2], work[3]
-    depth = _depth(info[I_BUILT], info[I_LEAFSIZE])
-    top = _top_levels(depth)
-    below = depth - top
+    top, below = _levels(info)
     for j in range(s, e):
         root = (1 << top) - 1 + j
         for u in range(rs[root], re[root]):
@@ -372,8 +371,7 @@ def kd_build_finish(kd):
     """Last part of a (re)build: the top levels' bounds, the leaf table's end, the empty slots."""
     slot_id, node_s, node_n, node_cnt, leaf_start, info = kd[1], kd[4], kd[5], kd[6], kd[7], kd[8]
     n = info[I_BUILT]
-    depth = _depth(n, info[I_LEAFSIZE])
-    for k in range((1 << _top_levels(depth)) - 2, -1, -1):
+    for k in range((1 << _levels(info)[0]) - 2, -1, -1):
         _join_bounds(node_s, node_n, node_cnt, k)
     leaf_start[info[I_FIRST_LEAF] + 1] = n
     for s in range(n, slot_id.shape[0]):
@@ -389,7 +387,7 @@ def kd_build(kd, work):
         outwards). :func:`kd_build_threaded` does the same on the numba threads.
     """
     rs, re, cell = kd_build_start(kd, work)
-    subtrees = np.int64(1) << _top_levels(_depth(kd[8][I_BUILT], kd[8][I_LEAFSIZE]))
+    subtrees = np.int64(1) << _levels(kd[8])[0]
     kd_build_subtrees(kd, work, rs, re, cell, 0, subtrees)
     kd_build_bounds(kd, work, rs, re, 0, subtrees)
     kd_build_finish(kd)
@@ -400,7 +398,7 @@ def kd_build_threaded(kd, work, parallel_min: int = _PARALLEL_BUILD_MIN) -> None
     for trees of at least ``parallel_min`` active clusters."""
     rs, re, cell = kd_build_start(kd, work)
     info = kd[8]
-    subtrees = 1 << int(_top_levels(_depth(info[I_BUILT], info[I_LEAFSIZE])))
+    subtrees = 1 << int(_levels(info)[0])
     min_n = 2 if info[I_BUILT] >= parallel_min else subtrees + 1
     on_threads(kd_build_subtrees, subtrees, min_n, kd, work, rs, re, cell)
     on_threads(kd_build_bounds, subtrees, min_n, kd, work, rs, re)
