@@ -111,14 +111,17 @@ def brute_force(metric, has_cone, c, clusters):
 def check_against_brute_force(position, normal, luminance, light_type, metric_name, c, merges, leafsize):
     metric = get_metric(metric_name)
     has_cone = light_type == "oriented"
-    active, best, d = best_matches_after_merges(position, normal, luminance, has_cone, metric, c, merges, leafsize)
     table = brute_force(metric, has_cone, c, clusters_after(position, normal, luminance, merges))
-    assert sorted(table) == list(active)
-    for a, b, value in zip(active, best, d):
-        ref = min(table[a].values())
-        assert value == ref, (a, b, value, ref)
-        # The returned cluster is a minimiser: the same one unless several tie.
-        assert table[a][b] == ref, (a, b)
+    # One search per cluster, and the clusters of a kd leaf searched together.
+    for grouped in (False, True):
+        active, best, d = best_matches_after_merges(position, normal, luminance, has_cone, metric, c, merges,
+                                                    leafsize, grouped)
+        assert sorted(table) == list(active)
+        for a, b, value in zip(active, best, d):
+            ref = min(table[a].values())
+            assert value == ref, (grouped, a, b, value, ref)
+            # The returned cluster is a minimiser: the same one unless several tie.
+            assert table[a][b] == ref, (grouped, a, b)
 
 
 # ------------------------------------------------------------------------------------ kd tree
