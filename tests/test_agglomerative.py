@@ -28,9 +28,11 @@ from lightcuts.lights.lightset import LightSet
 from lightcuts.trees.agglomerative import agglomerative, agglomerative_stats
 from lightcuts.trees.build import build_tree
 from lightcuts.trees.cones import cone_from_box
-from lightcuts.trees.kdtree import (N_AXIS, N_EMIN, N_HMIN, N_IMIN, N_LMAX, N_SPLIT, NE_MIN, NH_MIN, NL_MAX, S_HI,
-                                    S_I, S_LO, S_NHI, S_NLO, SLOT_DATA, best_matches_after_merges, kd_build_threaded,
-                                    kd_merge, kd_new, kd_wants_rebuild)
+from lightcuts.parallel import on_threads
+from lightcuts.trees.kdtree import (KD_SUBTREES, N_AXIS, N_EMIN, N_HMIN, N_IMIN, N_LMAX, N_SPLIT, NE_MIN, NH_MIN,
+                                    NL_MAX, S_HI, S_I, S_LO, S_NHI, S_NLO, SLOT_DATA, best_matches_after_merges,
+                                    kd_build, kd_build_threaded, kd_merge, kd_merge_batch, kd_merge_batch_finish,
+                                    kd_new, kd_subtree, kd_wants_rebuild)
 from lightcuts.trees.metrics import Metric, metric_eval
 from lightcuts.trees.registry import get_metric
 from lightcuts.trees.validate import validate_tree
@@ -178,6 +180,52 @@ def test_kd_tree_storage_and_bounds_through_merges_and_rebuilds():
         kd_merge(kd, work, a, b, n + m, True)
         if m % 37 == 0 or m >= n - 5:
             check_kd_tree(kd, clusters_after(*lights, merges[:m + 1]))
+
+
+@pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="needs two numba threads")
+def test_kd_merge_batches_on_threads():
+    # A round's merges: pairs within one subtree below the top levels on the threads, the others
+    # after them. The storage and every count must hold after each batch, and come out as when the
+    # subtrees are done in turn.
+    rng = np.random.default_rng(13)
+    n = 3000
+    position, normal, luminance = random_arrays(n, "oriented", rng, face_normals=True)
+    order = rng.permutation(n)
+    lights = position[order], normal[order], luminance[order]
+    left = np.full(2 * n - 1, -1, np.int32)
+    right = np.full(2 * n - 1, -1, np.int32)
+    trees = [kd_new(*lights, np.arange(n), 8, True) for _ in range(2)]
+    merges = []
+    kinds = set()
+    while len(merges) < n - 10:
+        kd = trees[0][0]
+        active = np.flatnonzero(kd[2] >= 0)
+        # Neighbours in slot order (mostly one subtree), and a few random pairs (mostly not).
+        active = active[np.argsort(kd[2][active])]
+        near = active[:len(active) // 2 // 2 * 2].reshape(-1, 2)
+        far = rng.permutation(active[len(near) * 2:])
+        far = far[:min(len(far) // 2, 20) * 2].reshape(-1, 2)
+        pairs = np.concatenate([near, far])
+        new0 = n + len(merges)
+        left[new0:new0 + len(pairs)], right[new0:new0 + len(pairs)] = pairs[:, 0], pairs[:, 1]
+        sub = np.array([kd_subtree(kd, a) if kd_subtree(kd, a) == kd_subtree(kd, b) else -1 for a, b in pairs],
+                       np.int32)
+        kinds |= {bool(s >= 0) for s in sub}
+        on_threads(kd_merge_batch, KD_SUBTREES, 0, trees[0][0], left, right, new0, len(pairs), sub)
+        kd_merge_batch(trees[1][0], left, right, new0, len(pairs), sub, 0, KD_SUBTREES)
+        for kd, work in trees:
+            kd_merge_batch_finish(kd, left, right, new0, len(pairs), sub)
+        merges += [tuple(p) for p in pairs]
+        check_kd_tree(trees[0][0], clusters_after(*lights, merges))
+        # Merges write slots and counts only (not the node bounds).
+        for name, a, b in zip(KD_FIELDS, trees[0][0], trees[1][0]):
+            if name in ("slot_id", "slot_of", "slot_leaf", "node_cnt", "leaf_start", "info"):
+                np.testing.assert_array_equal(a, b, err_msg=name)
+        np.testing.assert_array_equal(trees[0][0][0][:, :SLOT_DATA], trees[1][0][0][:, :SLOT_DATA])
+        for kd, work in trees:
+            if kd_wants_rebuild(kd):
+                kd_build(kd, work)
+    assert kinds == {True, False}
 
 
 @pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="needs two numba threads")

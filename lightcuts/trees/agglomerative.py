@@ -68,8 +68,9 @@ from numba import njit
 
 from lightcuts.errors import LightcutsError
 from lightcuts.parallel import on_threads
-from lightcuts.trees.kdtree import (LEAF_SIZE, kd_best_match, kd_build_threaded, kd_group_by_leaf, kd_merge,
-                                    kd_new, kd_search_range, kd_wants_rebuild)
+from lightcuts.trees.kdtree import (KD_SUBTREES, LEAF_SIZE, kd_best_match, kd_build_threaded, kd_group_by_leaf,
+                                    kd_merge, kd_merge_batch, kd_merge_batch_finish, kd_new, kd_search_range,
+                                    kd_subtree, kd_wants_rebuild)
 from lightcuts.trees.metrics import Metric
 from lightcuts.trees.registry import BUILDERS
 
@@ -155,12 +156,12 @@ def _rounds_start(position, normal, luminance, order, leafsize):
     """The locally-ordered builder's state, its kd-tree not built yet (the caller builds it, on the
     threads, and fills ``todo``).
 
-    Returns ``(kd, work, todo, todo_next, best, best_d, head, nxt, left, right, counters)``:
-    todo, todo_next : (N,) int64 clusters to search this round, and the
-        next round's; best, best_d : (2N-1,) int32 each cluster's last best match (-1: none, -2:
-        gone) and its float64 d; head, nxt : (2N-1,) int32 per cluster, the singly linked list of
-        the clusters whose best match it is (-1 ends it); left, right : (2N-1,) int32 children;
-        counters : see ``C_*``.
+    Returns ``(kd, work, todo, todo_next, best, best_d, head, nxt, left, right, pair_sub, counters)``:
+    todo, todo_next : (N,) int64 clusters to search this round, and the next round's; best, best_d :
+        (2N-1,) int32 each cluster's last best match (-1: none yet, -2: to search again, -3: the
+        cluster is gone) and its float64 d; head, nxt : (2N-1,) int32 per cluster, the singly
+        linked list of the clusters whose best match it is (-1 ends it); left, right : (2N-1,)
+        int32 children; pair_sub : (N,) int32 a round's pairs' kd subtrees; counters : see ``C_*``.
     """
     n = position.shape[0]
     k = 2 * n - 1
@@ -170,22 +171,25 @@ def _rounds_start(position, normal, luminance, order, leafsize):
     counters[C_NEXT] = n
     return (kd, work, todo, np.empty(n, np.int64), np.full(k, -1, np.int32), np.full(k, np.inf),
             np.full(k, -1, np.int32), np.full(k, -1, np.int32), np.full(k, -1, np.int32), np.full(k, -1, np.int32),
-            counters)
+            np.empty(n, np.int32), counters)
 
 
 @njit(cache=True, nogil=True)
-def _merge_round(kd, work, todo, n_todo, todo_next, best, best_d, head, nxt, left, right, counters):
-    """After the searches of ``todo[:n_todo]``: merge every pair the tie rule allows; returns the next
-    round's count (its clusters written to ``todo``).
+def _pair_round(kd, todo, n_todo, todo_next, best, best_d, head, nxt, left, right, pair_sub, counters):
+    """After the searches of ``todo[:n_todo]``: choose every pair the tie rule allows, numbered
+    ``left[m], right[m] -> m`` from ``counters[C_NEXT]`` on, each with its kd subtree in
+    ``pair_sub`` (the kd-tree merges them next, :func:`_merge_pairs`); returns the next round's
+    count (its clusters written to ``todo``).
 
     A checked on B = best(A) merges when d(A u B) <= B's own best d. Only pairs with a cluster
     searched this round are checked: A searched, or B searched and A in B's list. Any other pair was
-    checked with the same values when the later of its two was searched. A merge queues the new
-    cluster, and every cluster whose best match was one of the two (read off their lists).
+    checked with the same values when the later of its two was searched. A merge marks its two
+    clusters gone (best -3) and queues the new cluster, and every cluster whose best match was one
+    of the two (read off their lists).
     """
-    slot_of = kd[2]
     k = left.shape[0]
     new = counters[C_NEXT]
+    n_pairs = 0
     counters[C_SEARCHES] += n_todo
     counters[C_ROUNDS] += 1
     for i in range(n_todo):
@@ -197,27 +201,32 @@ def _merge_round(kd, work, todo, n_todo, todo_next, best, best_d, head, nxt, lef
     count = 0
     for i in range(n_todo):
         searched = todo[i]
-        # The searched cluster's own pair first, then the pairs of the clusters listing it.
+        # The searched cluster's own pair first, then the pairs of the clusters listing it. A gone,
+        # queued or unsearched cluster has best < 0 (lists keep gone clusters: skipped here).
         a = searched
         z = np.int64(head[searched])
         while True:
             b = np.int64(best[a])
-            if slot_of[a] >= 0 and b >= 0 and slot_of[b] >= 0 and best[b] >= 0 and best_d[a] <= best_d[b]:
+            if b >= 0 and best[b] >= 0 and best_d[a] <= best_d[b]:
                 left[new] = a
                 right[new] = b
-                kd_merge(kd, work, a, b, new, False)
+                sa = kd_subtree(kd, a)
+                pair_sub[n_pairs] = sa if sa == kd_subtree(kd, b) else -1
+                n_pairs += 1
+                best[a] = -3
+                best[b] = -3
                 todo_next[count] = new
                 count += 1
                 new += 1
                 for gone in (a, b):
                     y = np.int64(head[gone])
                     while y >= 0:
-                        if slot_of[y] >= 0 and best[y] == gone:
+                        if best[y] == gone:
                             todo_next[count] = y
                             count += 1
                             best[y] = -2
                         y = np.int64(nxt[y])
-                if new == k or slot_of[searched] < 0:
+                if new == k or best[searched] == -3:
                     break
             if z < 0:
                 break
@@ -229,6 +238,17 @@ def _merge_round(kd, work, todo, n_todo, todo_next, best, best_d, head, nxt, lef
         todo[i] = todo_next[i]
     counters[C_NEXT] = new
     return count
+
+
+def _merge_pairs(kd, left, right, new0, n_pairs, pair_sub, parallel_min):
+    """The kd-tree merges of a round's pairs (:func:`_pair_round`): those within one subtree below
+    the kd-tree's top levels on the threads, a subtree per task, then the rest in order. The slots
+    do not depend on the thread count."""
+    if n_pairs >= parallel_min:
+        on_threads(kd_merge_batch, KD_SUBTREES, 0, kd, left, right, new0, n_pairs, pair_sub)
+    else:
+        kd_merge_batch(kd, left, right, new0, n_pairs, pair_sub, 0, KD_SUBTREES)
+    kd_merge_batch_finish(kd, left, right, new0, n_pairs, pair_sub)
 
 
 def _locally_ordered(position, normal, luminance, order, metric_id, has_cone, use_cone, c, leafsize,
@@ -243,7 +263,7 @@ def _locally_ordered(position, normal, luminance, order, metric_id, has_cone, us
     light = _leaf_ids(n)
     if n == 1:
         return np.full(1, -1, np.int32), np.full(1, -1, np.int32), light, np.zeros(3, np.int64)
-    kd, work, todo, todo_next, best, best_d, head, nxt, left, right, counters = _rounds_start(
+    kd, work, todo, todo_next, best, best_d, head, nxt, left, right, pair_sub, counters = _rounds_start(
         position, normal, luminance, order, leafsize)
     kd_build_threaded(kd, work)
     # The first round searches the clusters in slot (kd-leaf) order, for locality.
@@ -252,7 +272,9 @@ def _locally_ordered(position, normal, luminance, order, metric_id, has_cone, us
     while counters[C_NEXT] < left.shape[0]:
         on_threads(kd_search_range, n_todo, parallel_min, kd, todo, n_todo, best, best_d, metric_id, has_cone,
                    use_cone, c)
-        n_todo = _merge_round(kd, work, todo, n_todo, todo_next, best, best_d, head, nxt, left, right, counters)
+        new0 = int(counters[C_NEXT])
+        n_todo = _pair_round(kd, todo, n_todo, todo_next, best, best_d, head, nxt, left, right, pair_sub, counters)
+        _merge_pairs(kd, left, right, new0, int(counters[C_NEXT]) - new0, pair_sub, parallel_min)
         # Between rounds, so that the rebuild runs on the threads too.
         if kd_wants_rebuild(kd):
             kd_build_threaded(kd, work)

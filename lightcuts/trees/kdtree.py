@@ -864,13 +864,10 @@ def kd_search_range(kd, todo, n_todo, best, best_d, metric_id, has_cone, use_con
         i = j
 
 
-@njit(cache=True)
-def kd_merge(kd, work, a, b, new_id, rebuild):
-    """Replace active clusters a and b by their union ``new_id`` (see the module docstring).
-
-    rebuild : rebuild the tree here when the active clusters have halved since the last build
-    (False: the caller does, see :func:`kd_wants_rebuild`).
-    """
+@njit(cache=True, nogil=True)
+def _merge_rows(kd, a, b, new_id, top):
+    """:func:`kd_merge`'s slot work, and the active counts on the path from the emptied slot's leaf
+    up to node ``top`` (0: the root; a first node of a level: to that level)."""
     slot_f, slot_id, slot_of, slot_leaf, node_s, node_n, node_cnt, leaf_start, info = kd[:9]
     sa = slot_of[a]
     sb = slot_of[b]
@@ -893,7 +890,6 @@ def kd_merge(kd, work, a, b, new_id, rebuild):
     slot_of[a] = -1
     slot_of[b] = -1
     slot_of[new_id] = keep
-    info[I_ACTIVE] -= 1
     # Keep the leaf's active slots in front: its last active row fills the emptied slot, so a
     # search scans active slots only.
     leaf = slot_leaf[drop]
@@ -905,13 +901,73 @@ def kd_merge(kd, work, a, b, new_id, rebuild):
         slot_of[slot_id[drop]] = drop
     slot_id[last] = -1
     k = leaf
-    while True:
+    while k >= top:
         node_cnt[k] -= 1
         if k == 0:
             break
         k = (k - 1) >> 1
+
+
+@njit(cache=True)
+def kd_merge(kd, work, a, b, new_id, rebuild):
+    """Replace active clusters a and b by their union ``new_id`` (see the module docstring).
+
+    rebuild : rebuild the tree here when the active clusters have halved since the last build
+    (False: the caller does, see :func:`kd_wants_rebuild`).
+    """
+    _merge_rows(kd, a, b, new_id, 0)
+    kd[8][I_ACTIVE] -= 1
     if rebuild and kd_wants_rebuild(kd):
         kd_build(kd, work)
+
+
+# Merges of a batch whose two clusters lie in one subtree below the top levels touch only that
+# subtree's slots and nodes, and the batch's new ids are distinct: such merges of different
+# subtrees run in parallel (kd_merge_batch).
+_BATCH_TOP = (1 << _TOP_LEVELS) - 1
+KD_SUBTREES = 1 << _TOP_LEVELS
+
+
+@njit(cache=True)
+def kd_subtree(kd, a):
+    """The subtree (0 .. KD_SUBTREES - 1) below the top levels that holds active cluster a, or -1 if
+    the tree has no level below them. (A subtree's leaves, hence its slots, are contiguous.)"""
+    first_leaf = kd[8][I_FIRST_LEAF]
+    if first_leaf < _BATCH_TOP:
+        return -1
+    step = (first_leaf + 1) // KD_SUBTREES
+    s = kd[2][a]
+    leaf_start = kd[7]
+    j = 0
+    for t in range(1, KD_SUBTREES):
+        if s >= leaf_start[t * step]:
+            j += 1
+    return j
+
+
+@njit(cache=True, nogil=True)
+def kd_merge_batch(kd, left, right, new0, n_pairs, pair_sub, s, e):
+    """Merges ``left[new0 + p], right[new0 + p] -> new0 + p`` of the batch's pairs p with
+    ``pair_sub[p]`` in [s, e) (their subtree, :func:`kd_subtree`), in batch order; the counts of the
+    top levels and ``info`` wait for :func:`kd_merge_batch_finish`."""
+    for p in range(n_pairs):
+        if s <= pair_sub[p] < e:
+            _merge_rows(kd, left[new0 + p], right[new0 + p], new0 + p, _BATCH_TOP)
+
+
+@njit(cache=True)
+def kd_merge_batch_finish(kd, left, right, new0, n_pairs, pair_sub):
+    """After :func:`kd_merge_batch` over every subtree: the batch's other merges (pair_sub -1), in
+    order, then the counts of the top levels and ``info``."""
+    node_cnt = kd[6]
+    top = _BATCH_TOP if kd[8][I_FIRST_LEAF] >= _BATCH_TOP else 0
+    for p in range(n_pairs):
+        if pair_sub[p] < 0:
+            _merge_rows(kd, left[new0 + p], right[new0 + p], new0 + p, top)
+    if top > 0:
+        for k in range(top - 1, -1, -1):
+            node_cnt[k] = node_cnt[2 * k + 1] + node_cnt[2 * k + 2]
+    kd[8][I_ACTIVE] -= n_pairs
 
 
 @njit(cache=True)
