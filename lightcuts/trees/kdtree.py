@@ -853,14 +853,11 @@ def kd_search_range(kd, todo, n_todo, best, best_d, metric_id, has_cone, use_con
         i = _group_end(todo, n_todo, slot_of, slot_leaf, i, cap)
     while i < e:
         j = _group_end(todo, n_todo, slot_of, slot_leaf, i, cap)
-        if j - i == 1:
-            a = todo[i]
-            best[a], best_d[a] = kd_best_match(kdt, a, metric_id, has_cone, use_cone, c)
-        else:
-            kd_best_match_group(kdt, todo, i, j, metric_id, has_cone, use_cone, c, gq, gb, gd, mb)
-            for m in range(j - i):
-                best[todo[i + m]] = gb[m]
-                best_d[todo[i + m]] = gd[m]
+        # Groups of one too: a call of kd_best_match here would compile it a second time (seconds).
+        kd_best_match_group(kdt, todo, i, j, metric_id, has_cone, use_cone, c, gq, gb, gd, mb)
+        for m in range(j - i):
+            best[todo[i + m]] = gb[m]
+            best_d[todo[i + m]] = gd[m]
         i = j
 
 
