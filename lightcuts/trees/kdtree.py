@@ -36,11 +36,14 @@ C writes C into the slot of whichever of A, B has its centre nearer C's; the oth
 by the last active slot of its leaf, and the counts on its path drop by one. No bound needs an
 update: C's upper ends, extents and intensity are >= those of the cluster whose slot it takes, its
 lower ends <=, so ``hmin``, ``emin``, ``imin`` (minima) and ``lmax`` (a maximum) still hold, as
-they do when a cluster is removed (they only become loose). When the active clusters fall to half
-of those at the last build, the tree is rebuilt over them (amortised O(N log N) in all), which
-restores tight bounds. A (re)build splits the top three levels, then handles the eight subtrees
-below them independently (splits, rows gathered into the workspace in leaf order, bounds), in turn
-(:func:`kd_build`) or on the numba threads (:func:`kd_build_threaded`), with the same result.
+they do when a cluster is removed (they only become loose). A batch of merges with distinct
+clusters (a round of the locally-ordered builder) does those whose two clusters lie in one subtree
+below the top levels on the threads, a subtree per task (:func:`kd_merge_batch`), then the others,
+then the counts of the top levels. When the active clusters fall to half of those at the last
+build, the tree is rebuilt over them (amortised O(N log N) in all), which restores tight bounds. A
+(re)build splits the top three levels, then handles the eight subtrees below them independently
+(splits, rows gathered into the workspace in leaf order, bounds), in turn (:func:`kd_build`) or on
+the numba threads (:func:`kd_build_threaded`), with the same result.
 
 Lower bound of d(A u B) over the clusters B under a node
 --------------------------------------------------------
