@@ -627,11 +627,10 @@ def kd_best_match_group(kd, todo, g0, g1, metric_id, has_cone, use_cone, c, gq, 
     The members' searches share their node bounds: a node is opened unless it bounds d(A u B) from
     below for every member A at once, by the bound of the module docstring with A's box replaced by
     the group's ``hi >= min hi``, ``lo <= max lo``, ``extent >= min extent`` (and the same for the
-    normal boxes), against the largest best d of the group. A leaf then costs each member whose own
-    bound does not prune it one leaf scan, which is cheap next to the node bounds it saves. The
-    scans were most of the time (71% by cycle counts at 200K VPLs, 29 points of it the second
-    pass); the leaf's boxes are copied as columns for them, so that the first pass vectorises
-    (12-15% less search time).
+    normal boxes), against the largest best d of the group. A leaf it reaches costs each member whose
+    own bound does not prune it one scan. The scans are most of the time (by cycle counts at 200K
+    VPLs, 71% before the leaf's boxes were copied as columns for them, 29 points of it the second
+    pass): the copy lets the first pass vectorise (12-15% less search time).
     """
     slot_f, slot_id, slot_of, slot_leaf, node_s, node_n, node_cnt, leaf_start, info, stack_node, stack_lb, dbuf = kd
     first_leaf = info[I_FIRST_LEAF]
@@ -814,7 +813,8 @@ def kd_best_match_group(kd, todo, g0, g1, metric_id, has_cone, use_cone, c, gq, 
 
 @njit(cache=True, nogil=True)
 def _group_end(todo, n_todo, slot_of, slot_leaf, i, cap):
-    """End of the search group that starts at ``todo[i]``: the run of clusters in its kd leaf, at most cap long."""
+    """End of the search group that starts at ``todo[i]``: the run of clusters in its kd leaf, at most
+    cap long."""
     leaf = slot_leaf[slot_of[todo[i]]]
     j = i + 1
     while j < n_todo and j - i < cap and slot_leaf[slot_of[todo[j]]] == leaf:
@@ -853,6 +853,8 @@ def kd_search_range(kd, todo, n_todo, best, best_d, metric_id, has_cone, use_con
     depend on ``todo`` only, not on [s, e), and each search writes its own entries, so the result
     does not depend on how a round is split among threads.
     """
+    if s >= e:
+        return
     kdt = kd_scratch(kd)
     slot_of = kd[2]
     slot_leaf = kd[3]
