@@ -64,8 +64,9 @@ Instead: the union's box of normals has on each axis an extent Dk bounded below 
 the box is the bounding box of actual unit normals, so two normals of A u B differ by Dk on that
 axis, hence are at least D = max_k Dk apart, at an angle >= 2 asin(D/2); any cone containing both
 has half-angle beta >= asin(D/2), i.e. ``cos(beta) <= sqrt(1 - D^2/4)``. The metric is evaluated
-with that cosine (S and 1 - cos(beta) only grow as cos(beta) falls). The same cosine, from a pair's
-own normal-box spread, bounds the pair's d from below, which spares most pairs their cone.
+with that cosine (S and 1 - cos(beta) only grow as cos(beta) falls). (The same cosine from a pair's
+own normal spread would bound the pair's d, but it spared only 2% of the pairs left after the
+first pass their cone, and cost more than it saved.)
 
 Rounding: the metric is a composition of monotone floating-point operations, so a bound holds as
 computed when its inputs do. The bound's extents are computed as the pair's own are, from ends
@@ -585,14 +586,8 @@ def kd_best_match(kd, a, metric_id, has_cone, use_cone, c):
                     nhi0 = max(qnhi0, slot_f[s, S_NHI])
                     nhi1 = max(qnhi1, slot_f[s, S_NHI + 1])
                     nhi2 = max(qnhi2, slot_f[s, S_NHI + 2])
-                    spread = max(nhi0 - nlo0, nhi1 - nlo1, nhi2 - nlo2)
-                    # The pair's own normal spread bounds its cone from below: past the best d
-                    # already, the cone itself is not needed.
-                    d = metric_eval(metric_id, intensity, lo0, lo1, lo2, hi0, hi1, hi2, _cone_cos_bound(spread),
-                                    has_cone, c)
-                    if d <= best_d:
-                        ax, ay, az, cos_half = cone_from_box(nlo0, nlo1, nlo2, nhi0, nhi1, nhi2)
-                        d = metric_eval(metric_id, intensity, lo0, lo1, lo2, hi0, hi1, hi2, cos_half, has_cone, c)
+                    ax, ay, az, cos_half = cone_from_box(nlo0, nlo1, nlo2, nhi0, nhi1, nhi2)
+                    d = metric_eval(metric_id, intensity, lo0, lo1, lo2, hi0, hi1, hi2, cos_half, has_cone, c)
                 if d < best_d or (d == best_d and b < best):
                     best = b
                     best_d = d
@@ -787,12 +782,8 @@ def kd_best_match_group(kd, todo, g0, g1, metric_id, has_cone, use_cone, c, gq, 
                         nhi0 = max(gq[S_NHI, m], slot_f[s, S_NHI])
                         nhi1 = max(gq[S_NHI + 1, m], slot_f[s, S_NHI + 1])
                         nhi2 = max(gq[S_NHI + 2, m], slot_f[s, S_NHI + 2])
-                        spread = max(nhi0 - nlo0, nhi1 - nlo1, nhi2 - nlo2)
-                        d = metric_eval(metric_id, intensity, lo0, lo1, lo2, hi0, hi1, hi2, _cone_cos_bound(spread),
-                                        has_cone, c)
-                        if d <= best_d:
-                            ax, ay, az, cos_half = cone_from_box(nlo0, nlo1, nlo2, nhi0, nhi1, nhi2)
-                            d = metric_eval(metric_id, intensity, lo0, lo1, lo2, hi0, hi1, hi2, cos_half, has_cone, c)
+                        ax, ay, az, cos_half = cone_from_box(nlo0, nlo1, nlo2, nhi0, nhi1, nhi2)
+                        d = metric_eval(metric_id, intensity, lo0, lo1, lo2, hi0, hi1, hi2, cos_half, has_cone, c)
                     if d < best_d or (d == best_d and b < best):
                         best = b
                         best_d = d
