@@ -486,6 +486,10 @@ def kd_best_match(kd, a, metric_id, has_cone, use_cone, c):
     searches on several threads need only their own copies of those three (:func:`kd_scratch`).
     The loop calls only scalar helpers: in numba an array passed to a helper costs two atomic
     reference-count updates per call, which was 40% of the search time.
+
+    :func:`kd_best_match_group` with one member finds the same, along the same traversal; it is not
+    used for this because its per-group set-up (member rows, leaf columns, scratch passed per call)
+    made the heap builder, which searches one cluster at a time, 20-35% slower.
     """
     slot_f, slot_id, slot_of, slot_leaf, node_s, node_n, node_cnt, leaf_start, info, stack_node, stack_lb, dbuf = kd
     first_leaf = info[I_FIRST_LEAF]
