@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import ctypes
 import json
 import os
 import subprocess
@@ -18,7 +19,8 @@ from numba import njit, prange
 
 import lightcuts
 from lightcuts.accel import RAY_CASTERS, make_caster
-from lightcuts.accel.embree_kernels import new_ray_buffer, ray_intersect, ray_occluded
+from lightcuts.accel.embree_kernels import (PACKET_FLOATS, lane_occluded, new_ray_buffer, new_ray_packet,
+                                           packet_occluded, packet_set_ray, ray_intersect, ray_occluded)
 from lightcuts.errors import LightcutsError
 
 import lightcuts.accel.embree  # noqa: F401  (registers the built-in casters)
@@ -202,6 +204,56 @@ def test_device_functions_match_batch_api():
     np.testing.assert_array_equal(prim, prim_ref)
     np.testing.assert_array_equal(occ, caster.occluded(org, dirs, tnear, tfar))
     assert (prim >= 0).any() and (prim < 0).any()
+
+
+@njit(cache=True)
+def _packets(occluded_n, width, scene, org, dirs, tnear, tfar, sizes, occ_out, untouched):
+    """Rays in packets of sizes[b] rays; lanes past the size hold a stale ray that must stay as it is."""
+    pk = new_ray_packet()
+    i = 0
+    for b in range(sizes.shape[0]):
+        n = sizes[b]
+        for lane in range(width):
+            r = min(i + lane, org.shape[0] - 1)
+            packet_set_ray(pk, width, lane, org[r, 0], org[r, 1], org[r, 2], dirs[r, 0], dirs[r, 1], dirs[r, 2],
+                           tnear[r], tfar[r])
+        packet_occluded(occluded_n, width, scene, pk, n)
+        for lane in range(width):
+            if lane < n:
+                occ_out[i + lane] = lane_occluded(pk, width, lane)
+            else:
+                untouched[b] &= pk[8 * width + lane] == np.float32(tfar[min(i + lane, org.shape[0] - 1)])
+        i += n
+
+
+@pytest.mark.parametrize("width", [4, 8])
+def test_ray_packets_match_single_rays(width):
+    vertices, faces = random_triangles(500, seed=17)
+    org, dirs = random_rays(3000, seed=18)
+    rng = np.random.default_rng(19)
+    tnear = rng.uniform(0.0, 0.3, len(org))
+    tfar = tnear + rng.uniform(0.0, 1.5, len(org))
+    sizes = rng.integers(1, width + 1, len(org))
+    sizes = sizes[:np.searchsorted(np.cumsum(sizes), len(org), side="right")]
+    n = int(sizes.sum())
+    caster = make_caster((vertices, faces), "embree")
+    occluded_n, native_width, scene = caster.packet_handles
+    assert native_width in (4, 8)
+    if width != native_width:
+        if width == 8:
+            pytest.skip("this processor has no native 8-wide packets")
+        occluded_n = ctypes.CFUNCTYPE(None, *[ctypes.c_uint64] * 4)(("rtcOccluded4", caster._lib.lib))
+    occ = np.zeros(n, np.bool_)
+    untouched = np.ones(len(sizes), np.bool_)
+    _packets(occluded_n, width, scene, org, dirs, tnear, tfar, sizes, occ, untouched)
+    np.testing.assert_array_equal(occ, caster.occluded(org[:n], dirs[:n], tnear[:n], tfar[:n]))
+    assert occ.any() and not occ.all() and untouched.all()
+
+
+def test_new_ray_packet_is_aligned():
+    for _ in range(8):
+        pk = new_ray_packet()
+        assert pk.ctypes.data % 32 == 0 and pk.shape == (PACKET_FLOATS,) and pk.dtype == np.float32
 
 
 def test_new_ray_buffer_is_aligned_from_python():

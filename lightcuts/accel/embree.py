@@ -3,7 +3,8 @@
 ``embree`` loads the libembree4 that the embreex wheel ships, builds the scene through Embree's C
 API (ROBUST flag) and casts rays in ``@njit(parallel=True)`` kernels calling ``rtcIntersect1`` /
 ``rtcOccluded1`` (lightcuts/accel/embree_kernels.py): all cores, a real per-ray tnear, and per-ray
-calls usable from other kernels through ``kernel_handles``. This relies on Embree 4's C ABI and
+calls usable from other kernels through ``kernel_handles`` (and ``rtcOccluded8`` packets through
+``packet_handles``). This relies on Embree 4's C ABI and
 RTCRayHit layout; tests/test_accel.py compares it against embreex's own ``scene.run`` so a layout
 change fails loudly.
 
@@ -34,6 +35,7 @@ RTC_FORMAT_UINT3 = 0x5003
 RTC_FORMAT_FLOAT3 = 0x9003
 RTC_SCENE_FLAG_ROBUST = 1 << 2
 RTC_DEVICE_PROPERTY_VERSION = 0
+RTC_DEVICE_PROPERTY_NATIVE_RAY8_SUPPORTED = 33
 _EMBREE_MAJOR = 4
 
 
@@ -47,6 +49,9 @@ class _EmbreeLib:
     # Pointer arguments declared uint64 so numba kernels can pass plain integers.
     intersect1: ctypes._CFuncPtr
     occluded1: ctypes._CFuncPtr
+    # rtcOccluded8 where the processor runs 8-wide packets natively, else rtcOccluded4, and its width.
+    occluded_n: ctypes._CFuncPtr
+    packet_width: int
 
 
 def _find_libembree4() -> str:
@@ -104,11 +109,13 @@ def _embree_lib() -> _EmbreeLib:
     if not probe:
         raise LightcutsError(f"ray caster 'embree': rtcNewDevice failed ({path})")
     version = int(lib.rtcGetDeviceProperty(probe, RTC_DEVICE_PROPERTY_VERSION))
+    width = 8 if lib.rtcGetDeviceProperty(probe, RTC_DEVICE_PROPERTY_NATIVE_RAY8_SUPPORTED) == 1 else 4
     lib.rtcReleaseDevice(probe)
+    occluded_n = ctypes.CFUNCTYPE(None, *[ctypes.c_uint64] * 4)((f"rtcOccluded{width}", lib))
     if version // 10000 != _EMBREE_MAJOR:
         raise LightcutsError(f"ray caster 'embree': {path} is Embree {version}; the RTCRayHit layout used "
                              f"here is Embree {_EMBREE_MAJOR}.x's")
-    return _EmbreeLib(path, version, lib, intersect1, occluded1)
+    return _EmbreeLib(path, version, lib, intersect1, occluded1, occluded_n, width)
 
 
 @RAY_CASTERS.register("embree")
@@ -210,6 +217,13 @@ class EmbreeCaster(RayCaster):
         """``(intersect1, occluded1, scene)`` for lightcuts.accel.embree_kernels.ray_intersect /
         ray_occluded: ctypes functions and the scene handle (int). Valid until :meth:`close`."""
         return self._lib.intersect1, self._lib.occluded1, self._scene_handle()
+
+    @property
+    def packet_handles(self) -> tuple:
+        """``(occluded_n, width, scene)`` for lightcuts.accel.embree_kernels.packet_occluded:
+        ``rtcOccluded8`` (width 8) or, where the processor lacks native 8-wide packets,
+        ``rtcOccluded4`` (width 4). Valid until :meth:`close`."""
+        return self._lib.occluded_n, self._lib.packet_width, self._scene_handle()
 
     def intersect(self, org, dirs, tnear=0.0, tfar=np.inf):
         from lightcuts.accel.embree_kernels import intersect_rays

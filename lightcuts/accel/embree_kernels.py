@@ -1,4 +1,5 @@
-r"""numba kernels that call Embree 4 (``rtcIntersect1`` / ``rtcOccluded1``) per ray.
+r"""numba kernels that call Embree 4 (``rtcIntersect1`` / ``rtcOccluded1``) per ray, and
+``rtcOccluded4`` / ``rtcOccluded8`` per packet of shadow rays.
 
 The per-ray device functions here are what other kernels (the cut evaluator, the particle tracer)
 call inside their own ``prange`` loops; the batch kernels at the bottom are what
@@ -10,7 +11,9 @@ Handles
 arguments declared ``uint64``) and the scene handle as a Python ``int``. Pass all three into the
 kernel as ARGUMENTS: a ctypes function referenced as a module global makes numba refuse to cache
 the kernel ("dynamic globals"), costing seconds of JIT in every process. The caster must stay alive
-(not closed) while a kernel uses its handles.
+(not closed) while a kernel uses its handles. ``caster.packet_handles`` is ``(occluded_n, width,
+scene)`` for :func:`packet_occluded`: ``rtcOccluded8`` (width 8) where Embree reports native 8-wide
+packets on this processor, else ``rtcOccluded4`` (width 4).
 
 Rays
 ----
@@ -223,6 +226,61 @@ def ray_intersect(intersect1, scene, buf, ox, oy, oz, dx, dy, dz, tnear, tfar):
     if _load_u32(buf, 18) == INVALID_ID:
         return np.inf, np.int64(-1)
     return np.float64(buf[8]), np.int64(_load_u32(buf, 17))
+
+
+# Ray packets (``rtcOccluded4`` / ``rtcOccluded8``): one RTCRay4/8 in SoA layout, field f of lane r
+# in float32 slot ``f * K + r`` (K = the packet width), followed by the valid mask (K int32).
+#: Fields of RTCRayN in order: org x, y, z, tnear, dir x, y, z, time, tfar, mask, id, flags.
+PACKET_FIELDS = 12
+#: Slots reserved for the widest packet used (8) and its valid mask.
+PACKET_FLOATS = (PACKET_FIELDS + 1) * 8
+#: Embree requires an RTCRay8 to be 32-byte aligned (16 for RTCRay4).
+PACKET_ALIGN = 32
+
+
+@njit(cache=True)
+def new_ray_packet():
+    """(PACKET_FLOATS,) float32 scratch for one ray packet of up to 8 rays and its valid mask,
+    32-byte aligned, zeroed. Fill lanes with :func:`packet_set_ray`, cast with :func:`packet_occluded`."""
+    spare = PACKET_ALIGN // 4 - 1
+    raw = np.zeros(PACKET_FLOATS + spare, np.float32)
+    skip = ((PACKET_ALIGN - raw.ctypes.data % PACKET_ALIGN) % PACKET_ALIGN) // 4
+    return raw[skip:skip + PACKET_FLOATS]
+
+
+@njit(cache=True, forceinline=True)
+def packet_set_ray(pk, width, lane, ox, oy, oz, dx, dy, dz, tnear, tfar):
+    """Write a ray into lane ``lane`` of the packet pk (width 4 or 8; arguments as
+    :func:`ray_occluded`). The caller keeps ``tnear <= tfar`` (an empty segment is not tested here)."""
+    pk[lane] = ox
+    pk[width + lane] = oy
+    pk[2 * width + lane] = oz
+    pk[3 * width + lane] = max(tnear, 0.0)
+    pk[4 * width + lane] = dx
+    pk[5 * width + lane] = dy
+    pk[6 * width + lane] = dz
+    pk[7 * width + lane] = 0.0
+    pk[8 * width + lane] = tfar
+    _store_u32(pk, 9 * width + lane, INVALID_ID)   # mask: all geometries
+    _store_u32(pk, 10 * width + lane, 0)           # id
+    _store_u32(pk, 11 * width + lane, 0)           # flags
+
+
+@njit(cache=True)
+def packet_occluded(occluded_n, width, scene, pk, n):
+    """Cast lanes 0..n-1 of the packet pk with Embree's ``rtcOccluded4`` / ``rtcOccluded8``
+    (occluded_n, of that width, from ``caster.packet_handles``); then :func:`lane_occluded` tells
+    each lane's answer. Lanes n..width-1 are inactive (their data is ignored)."""
+    for lane in range(width):
+        _store_u32(pk, PACKET_FIELDS * width + lane, INVALID_ID if lane < n else 0)  # -1: active
+    base = _address(pk)
+    occluded_n(base + 4 * PACKET_FIELDS * width, scene, base, 0)
+
+
+@njit(cache=True, forceinline=True)
+def lane_occluded(pk, width, lane):
+    """True if lane ``lane`` of the packet cast last hit something (Embree set its tfar to -inf)."""
+    return pk[8 * width + lane] < 0.0
 
 
 @njit(parallel=True, cache=True)

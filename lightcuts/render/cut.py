@@ -59,11 +59,24 @@ branch per side (1-2% slower); unsigned node ids in :func:`node_bound`, a select
 leaf branch, and ``llvm.prefetch`` of both children's light rows before the bounds (a profile
 shows that row's load waiting on memory; no change either way).
 
+Deferred visibility: shadow rays are cast 8 at a time (``rtcOccluded8``; 4 where the processor
+has no native 8-wide packets) rather than one by one. The order of refinement depends on the
+bounds only; the stop test needs the total estimate t. A waiting ray counts as visible, so the
+running t is an upper end of the true total, and a top bound > eps * t must be refined whatever
+the rays return: the rays are cast when the packet is full or when the top bound is <= eps * t
+(then the test is taken again on the true total). A waiting ray belongs to a slot (``lane_slot``)
+and follows its representative when the slot is refined. The cut, its shadow rays and the image
+came out the same as casting each ray at once, bit for bit (the stop test's total may differ in
+rounding only, and the final sum is recomputed from the cut). Measured on the Cornell box with a
+glossy floor, 21,000 lights, 128 x 128, one thread: 7.7 rays a packet on average, and by cycle
+counts 215 cycles a shadow ray instead of 376. The roots' rays (one per tree) are still cast singly.
+
 Scratch (one set per thread, reused across receivers), ``cap = max(max_cut, n_roots) + 2``
 (the heap keeps a -inf sentinel after its last entry):
 ``heap_key (cap,) float64``, ``heap_slot (cap,) int64``, ``slot_node (cap,) int64``,
 ``slot_mgv (cap, 3) float64`` (the representative's ``M G V`` per RGB channel) and
-``slot_ratio (cap,) float64`` (unclamped over clamped G of the representative, 1 if not clamped).
+``slot_ratio (cap,) float64`` (unclamped over clamped G of the representative, 1 if not clamped),
+``lane_slot (width,) int64`` (the slot of each waiting shadow ray) and the packet itself.
 """
 
 from __future__ import annotations
@@ -73,7 +86,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from lightcuts.accel.embree_kernels import ray_occluded
+from lightcuts.accel.embree_kernels import lane_occluded, packet_occluded, packet_set_ray, ray_occluded
 from lightcuts.errors import LightcutsError
 from lightcuts.lights.lightset import LIGHT_TYPES, LUMINANCE, LightSet
 from lightcuts.parallel import on_threads
@@ -444,14 +457,38 @@ def _sift_down(heap_key, heap_slot, size, key, slot):
 
 
 @njit(cache=True, error_model="numpy")
+def _flush(occluded_n, width, scene, pk, lanes, lane_slot, slot_node, slot_mgv, slot_ratio, node_b):
+    """Cast the waiting shadow rays (lanes 0..lanes-1 of the packet pk) and zero the estimate of
+    each slot whose ray is occluded. Returns the RGB estimate so removed from the cut's total."""
+    packet_occluded(occluded_n, width, scene, pk, lanes)
+    e0 = 0.0
+    e1 = 0.0
+    e2 = 0.0
+    for r in range(lanes):
+        q = lane_slot[r]
+        if q >= 0 and lane_occluded(pk, width, r):
+            k = slot_node[q]
+            e0 += slot_mgv[q, 0] * node_b[k, NB_I]
+            e1 += slot_mgv[q, 1] * node_b[k, NB_I + 1]
+            e2 += slot_mgv[q, 2] * node_b[k, NB_I + 2]
+            slot_mgv[q, 0] = 0.0
+            slot_mgv[q, 1] = 0.0
+            slot_mgv[q, 2] = 0.0
+            slot_ratio[q] = 1.0
+    return e0, e1, e2
+
+
+@njit(cache=True, error_model="numpy")
 def lightcut(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, exponent,
              node_b, node_bi, roots, light_f, eps, max_cut, clamp_d2, ray_offset, visibility, occluded1, scene, buf,
-             heap_key, heap_slot, slot_node, slot_mgv, slot_ratio):
+             occluded_n, width, pk, heap_key, heap_slot, slot_node, slot_mgv, slot_ratio, lane_slot):
     """Radiance reflected at x towards the viewer, by a lightcut through every tree of the forest.
 
     x, n, r, rd, rs, exponent : receiver as in :func:`light_mgv`; node_b, node_bi, roots, light_f :
-    the forest; eps : relative error threshold; max_cut : cut size limit; the remaining arguments:
-    see :func:`light_mgv` and the module docstring (scratch).
+    the forest; eps : relative error threshold; max_cut : cut size limit; occluded_n, width, pk :
+    the packet function and its width (``caster.packet_handles``) and the packet's scratch
+    (lightcuts.accel.embree_kernels.new_ray_packet); the remaining arguments: see
+    :func:`light_mgv` and the module docstring (scratch).
     Returns ``(L_r, L_g, L_b, cut_size, shadow_rays, clamp_lost)``: clamp_lost = the cut's estimate
     of the luminance that clamping removed here.
 
@@ -486,19 +523,48 @@ def lightcut(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, e
         n_slots += 1
     heap_key[size] = -np.inf
 
+    # Shadow rays wait in the packet (lane r belongs to slot lane_slot[r], -1 for a ray nobody
+    # needs any more) while t counts them as visible. t is then the upper end of the true total,
+    # so a top bound > eps * t must be refined whatever the rays return; only a top bound
+    # <= eps * t needs their answers (module docstring, "Deferred visibility").
+    lanes = 0
     while size > 0 and n_slots < max_cut:
         if heap_key[0] <= eps * luminance(t0, t1, t2):
-            break
+            if lanes == 0:
+                break
+            e0, e1, e2 = _flush(occluded_n, width, scene, pk, lanes, lane_slot, slot_node, slot_mgv, slot_ratio,
+                                node_b)
+            t0 -= e0
+            t1 -= e1
+            t2 -= e2
+            lanes = 0
+            continue
         # The top s leaves the heap; its first child with a bound takes its place (one sift down
         # instead of a pop and a push).
         s = heap_slot[0]
         k = slot_node[s]
+        prep = node_bi[k, NB_REP]
+        left = np.int64(node_bi[k, NB_LEFT])  # siblings are side by side (build_forest)
+        jl = np.int64(node_bi[left, NB_REP])
+        jr = np.int64(node_bi[left + 1, NB_REP])
+        if lanes + (jl != prep) + (jr != prep) > width:
+            # Cast before s's estimate leaves t: a waiting ray of s may change that estimate.
+            e0, e1, e2 = _flush(occluded_n, width, scene, pk, lanes, lane_slot, slot_node, slot_mgv, slot_ratio,
+                                node_b)
+            t0 -= e0
+            t1 -= e1
+            t2 -= e2
+            lanes = 0
+        # s's waiting ray, if any, follows s's representative: it stays with the left child (which
+        # takes s's slot) or moves to the right child's new slot, or nobody needs it any more.
+        if jl != prep:
+            for r in range(lanes):
+                if lane_slot[r] == s:
+                    lane_slot[r] = n_slots if jr == prep else -1
         pm0, pm1, pm2, pratio = slot_mgv[s, 0], slot_mgv[s, 1], slot_mgv[s, 2], slot_ratio[s]
         t0 -= pm0 * node_b[k, NB_I]
         t1 -= pm1 * node_b[k, NB_I + 1]
         t2 -= pm2 * node_b[k, NB_I + 2]
-        prep = node_bi[k, NB_REP]
-        left = np.int64(node_bi[k, NB_LEFT])  # siblings are side by side (build_forest)
         # Both children's bounds first: pure arithmetic, independent of each other, so the
         # processor overlaps them.
         bl = node_bound(left, node_b, node_bi, x0, x1, x2, n0, n1, n2, r0, r1, r2, fr, rd0, rd1, rd2, rs0, rs1, rs2,
@@ -524,7 +590,7 @@ def lightcut(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, e
             c = left + side
             # The left child takes the parent's slot, the right child a new one.
             cs = s if side == 0 else n_slots
-            j = np.int64(node_bi[c, NB_REP])
+            j = jl if side == 0 else jr
             if j == prep:
                 m0, m1, m2, ratio = pm0, pm1, pm2, pratio
             else:
@@ -536,8 +602,10 @@ def lightcut(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, e
                 # As light_mgv: one shadow ray counted per light with M G > 0.
                 if lit and visibility:
                     rays += 1
-                    if tfar > 0.0 and ray_occluded(occluded1, scene, buf, o0, o1, o2, d0, d1, d2, 0.0, tfar):
-                        m0, m1, m2, ratio = 0.0, 0.0, 0.0, 1.0
+                    if tfar > 0.0:
+                        packet_set_ray(pk, width, lanes, o0, o1, o2, d0, d1, d2, 0.0, tfar)
+                        lane_slot[lanes] = cs
+                        lanes += 1
             slot_node[cs] = c
             slot_mgv[cs, 0] = m0
             slot_mgv[cs, 1] = m1
@@ -547,6 +615,15 @@ def lightcut(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, e
             t1 += m1 * node_b[c, NB_I + 1]
             t2 += m2 * node_b[c, NB_I + 2]
         n_slots += 1
+        if lanes == width:
+            e0, e1, e2 = _flush(occluded_n, width, scene, pk, lanes, lane_slot, slot_node, slot_mgv, slot_ratio,
+                                node_b)
+            t0 -= e0
+            t1 -= e1
+            t2 -= e2
+            lanes = 0
+    if lanes > 0:
+        _flush(occluded_n, width, scene, pk, lanes, lane_slot, slot_node, slot_mgv, slot_ratio, node_b)
 
     # The final sum again, from the cut itself: the running total above drifts by cancellation.
     t0 = 0.0

@@ -38,7 +38,7 @@ import numba
 import numpy as np
 from numba import njit, prange
 
-from lightcuts.accel.embree_kernels import new_ray_buffer, ray_intersect
+from lightcuts.accel.embree_kernels import new_ray_buffer, new_ray_packet, ray_intersect
 from lightcuts.errors import LightcutsError
 from lightcuts.lights.environment import envmap_radiance
 from lightcuts.lights.lightset import LUMINANCE
@@ -93,10 +93,10 @@ class RenderResult:
 
 
 @njit(cache=True, error_model="numpy")
-def _render_pixel(intersect1, occluded1, scene, cam, seed, spp, sx, sy, px, py,
+def _render_pixel(intersect1, occluded1, occluded_n, width, scene, cam, seed, spp, sx, sy, px, py,
                   face_normal, albedo, specular, exponent, emission, node_b, node_bi, roots, light_f, light_i,
                   env_pixels, env_rotation, env_scale, eps, max_cut, clamp_d2, ray_offset, visibility, reference,
-                  buf, heap_key, heap_slot, slot_node, slot_mgv, slot_ratio):
+                  buf, pk, heap_key, heap_slot, slot_node, slot_mgv, slot_ratio, lane_slot):
     """All eye rays of pixel (px, py): returns (L_r, L_g, L_b, cut, shadow_rays, clamp_lost), cut
     and clamp_lost summed over the eye rays. An empty env_pixels (0, 0, 3) means no environment."""
     o0, o1, o2 = cam[CAM_POSITION], cam[CAM_POSITION + 1], cam[CAM_POSITION + 2]
@@ -135,7 +135,8 @@ def _render_pixel(intersect1, occluded1, scene, cam, seed, spp, sx, sy, px, py,
         else:
             res = lightcut(p0, p1, p2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, exponent[prim],
                            node_b, node_bi, roots, light_f, eps, max_cut, clamp_d2, ray_offset, visibility,
-                           occluded1, scene, buf, heap_key, heap_slot, slot_node, slot_mgv, slot_ratio)
+                           occluded1, scene, buf, occluded_n, width, pk, heap_key, heap_slot, slot_node, slot_mgv,
+                           slot_ratio, lane_slot)
         a0 += res[0]
         a1 += res[1]
         a2 += res[2]
@@ -146,7 +147,7 @@ def _render_pixel(intersect1, occluded1, scene, cam, seed, spp, sx, sy, px, py,
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
-def _render_band(intersect1, occluded1, scene, cam, seed, spp, sx, sy, x0, x1, y0, y1,
+def _render_band(intersect1, occluded1, occluded_n, width, scene, cam, seed, spp, sx, sy, x0, x1, y0, y1,
                  face_normal, albedo, specular, exponent, emission, node_b, node_bi, roots, light_f, light_i,
                  env_pixels, env_rotation, env_scale, eps, max_cut, clamp_d2, ray_offset, visibility, reference,
                  out_rgb, out_cut, out_rays, out_lost):
@@ -160,6 +161,8 @@ def _render_band(intersect1, occluded1, scene, cam, seed, spp, sx, sy, x0, x1, y
     cap = max(max_cut, roots.shape[0]) + 2
     for c in prange((n + CHUNK - 1) // CHUNK):
         buf = new_ray_buffer()
+        pk = new_ray_packet()
+        lane_slot = np.empty(width, np.int64)
         heap_key = np.empty(cap)
         heap_slot = np.empty(cap, np.int64)
         slot_node = np.empty(cap, np.int64)
@@ -169,10 +172,10 @@ def _render_band(intersect1, occluded1, scene, cam, seed, spp, sx, sy, x0, x1, y
             row = i // cols
             col = i - row * cols
             a0, a1, a2, cut, rays, lost = _render_pixel(
-                intersect1, occluded1, scene, cam, seed, spp, sx, sy, x0 + col, y0 + row,
+                intersect1, occluded1, occluded_n, width, scene, cam, seed, spp, sx, sy, x0 + col, y0 + row,
                 face_normal, albedo, specular, exponent, emission, node_b, node_bi, roots, light_f, light_i,
                 env_pixels, env_rotation, env_scale, eps, max_cut, clamp_d2, ray_offset, visibility, reference,
-                buf, heap_key, heap_slot, slot_node, slot_mgv, slot_ratio)
+                buf, pk, heap_key, heap_slot, slot_node, slot_mgv, slot_ratio, lane_slot)
             out_rgb[row, col, 0] = a0 / spp
             out_rgb[row, col, 1] = a1 / spp
             out_rgb[row, col, 2] = a2 / spp
@@ -211,10 +214,12 @@ def _render(scene, caster, lights, trees, camera, spp, eps, max_cut, clamp, clam
     if int(seed) != seed or seed < 0:
         raise LightcutsError(f"seed: {seed} must be a non-negative integer")
     handles = getattr(caster, "kernel_handles", None)
-    if handles is None:
+    packets = getattr(caster, "packet_handles", None)
+    if handles is None or packets is None:
         raise LightcutsError(f"render.ray_caster: {type(caster).__name__} cannot be called from kernels; "
                              f"use 'embree'")
     intersect1, occluded1, scene_handle = handles
+    occluded_n, width, _ = packets
     forest = build_forest(lights, None if reference else trees)
     spp, max_cut, seed = int(spp), int(max_cut), int(seed)
     sx, sy = strata(spp)
@@ -242,7 +247,7 @@ def _render(scene, caster, lights, trees, camera, spp, eps, max_cut, clamp, clam
         b1 = min(rows, b0 + band)
         # Dynamic scheduling: pixels differ in cost, and the cores are shared with other work.
         with numba.parallel_chunksize(PARALLEL_CHUNKS):
-            _render_band(intersect1, occluded1, scene_handle, cam, seed, spp, sx, sy, x0, x1, y0 + b0, y0 + b1,
+            _render_band(intersect1, occluded1, occluded_n, width, scene_handle, cam, seed, spp, sx, sy, x0, x1, y0 + b0, y0 + b1,
                          face_normal, albedo, specular, exponent, emission,
                          f.node_b, f.node_bi, f.roots, f.light_f, f.light_i, env_pixels, env_rotation, env_scale,
                          float(eps), max_cut, float(clamp_d2), float(ray_offset), bool(visibility),
