@@ -172,7 +172,8 @@ def test_kd_tree_storage_and_bounds_through_merges_and_rebuilds():
     position, normal, luminance = random_arrays(n, "oriented", rng, face_normals=True)
     merges = random_merges(n, n - 2, rng)
     order = rng.permutation(n)
-    kd, work = kd_new(position, normal, luminance, order, 4, True)
+    kd, work = kd_new(position, normal, luminance, order, 4)
+    kd_build(kd, work)
     # Cluster i < n is light order[i].
     lights = position[order], normal[order], luminance[order]
     check_kd_tree(kd, clusters_after(*lights, merges[:0]))
@@ -194,7 +195,9 @@ def test_kd_merge_batches_on_threads():
     lights = position[order], normal[order], luminance[order]
     left = np.full(2 * n - 1, -1, np.int32)
     right = np.full(2 * n - 1, -1, np.int32)
-    trees = [kd_new(*lights, np.arange(n), 8, True) for _ in range(2)]
+    trees = [kd_new(*lights, np.arange(n), 8) for _ in range(2)]
+    for kd, work in trees:
+        kd_build(kd, work)
     merges = []
     kinds = set()
     while len(merges) < n - 10:
@@ -239,9 +242,11 @@ def test_kd_rebuild_on_threads_is_the_serial_rebuild():
     order = rng.permutation(n)
     trees = []
     for threaded in (False, True):
-        kd, work = kd_new(position, normal, luminance, order, 8, not threaded)
+        kd, work = kd_new(position, normal, luminance, order, 8)
         if threaded:
             kd_build_threaded(kd, work, parallel_min=0)
+        else:
+            kd_build(kd, work)
         internal = int(kd[8][0])
         for m, (a, b) in enumerate(merges):
             kd_merge(kd, work, a, b, n + m, not threaded)

@@ -417,7 +417,7 @@ def kd_build_threaded(kd, work, parallel_min: int = _PARALLEL_BUILD_MIN) -> None
 
 
 @njit(cache=True)
-def kd_new(position, normal, luminance, order, leafsize, build):
+def kd_new(position, normal, luminance, order, leafsize):
     """The kd-tree over N single-light clusters (cluster i = light ``order[i]``), and its build workspace.
 
     position, normal : (N, 3) float64; luminance : (N,) float64; order : (N,) int64 permutation;
@@ -425,7 +425,8 @@ def kd_new(position, normal, luminance, order, leafsize, build):
     Returns ``(kd, work)``: ``kd = (slot_f, slot_id, slot_of, slot_leaf, node_s, node_n, node_cnt,
     leaf_start, info, stack_node, stack_lb, dbuf)`` as described in the module docstring
     (``slot_of`` has room for the 2N-1 cluster ids of a full tree), ``work = (keys, idx, slot_tmp,
-    id_tmp)``. build : False leaves the tree to the caller (:func:`kd_build_threaded`).
+    id_tmp)``. The tree is not built yet: build it with :func:`kd_build` or :func:`kd_build_threaded`
+    (kd_build is not called here, so that a caller of kd_new alone does not compile it).
     """
     n = position.shape[0]
     slot_f = _rows_f64(n, SLOT_WIDTH)
@@ -449,8 +450,6 @@ def kd_new(position, normal, luminance, order, leafsize, build):
           _rows_f32(n_nodes, NORMAL_WIDTH), np.zeros(n_nodes, np.int32), np.zeros((1 << depth) + 1, np.int64), info,
           np.empty(_STACK, np.int64), np.empty(_STACK), np.empty(leafsize))
     work = (np.empty((n, 3)), np.empty(n, np.int32), np.empty((n, SLOT_WIDTH)), np.empty(n, np.int32))
-    if build:
-        kd_build(kd, work)
     return kd, work
 
 
@@ -998,7 +997,8 @@ def kd_scratch(kd):
 @njit(cache=True)
 def _best_matches_after(position, normal, luminance, merges, metric_id, has_cone, use_cone, c, leafsize, grouped):
     n = position.shape[0]
-    kd, work = kd_new(position, normal, luminance, np.arange(position.shape[0]), leafsize, True)
+    kd, work = kd_new(position, normal, luminance, np.arange(position.shape[0]), leafsize)
+    kd_build(kd, work)
     for m in range(merges.shape[0]):
         kd_merge(kd, work, merges[m, 0], merges[m, 1], n + m, True)
     active = np.flatnonzero(kd[2] >= 0)
