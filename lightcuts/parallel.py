@@ -13,6 +13,9 @@ from concurrent.futures import ThreadPoolExecutor, wait
 
 import numba
 import numpy as np
+from llvmlite import ir
+from numba import types
+from numba.extending import intrinsic
 
 
 def threads_for(n: int, min_n: int) -> int:
@@ -50,6 +53,21 @@ def on_threads(kernel, n: int, min_n: int, *args) -> None:
     threads = threads_for(n, min_n)
     cuts = np.linspace(0, n, threads + 1).astype(np.int64)
     run_all(lambda t: kernel(*args, cuts[t], cuts[t + 1]), range(threads))
+
+
+@intrinsic
+def next_task(typingctx, counter):
+    """In a kernel: atomically ``counter[0] += 1``, returning the value before (an int64 array of
+    one element, zero at the start). Threads that take tasks this way share them dynamically; a
+    task's output must not depend on which thread ran it."""
+    if not (isinstance(counter, types.Array) and counter.dtype == types.int64):
+        return None
+
+    def codegen(context, builder, sig, args):
+        a = context.make_array(sig.args[0])(context, builder, args[0])
+        return builder.atomic_rmw("add", a.data, ir.Constant(ir.IntType(64), 1), "monotonic")
+
+    return types.int64(counter), codegen
 
 
 def balance(sizes: np.ndarray, threads: int) -> list[np.ndarray]:
