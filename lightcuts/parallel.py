@@ -1,10 +1,11 @@
 """Running ``nogil`` numba kernels on the numba threads from Python threads.
 
 Several passes (divisive subtrees, the tree fill, the forest, the agglomerative builder's searches
-and kd-tree builds) split their work into independent ranges or tasks. They run as
-``@njit(nogil=True)`` kernels on a thread pool rather than as ``parallel=True`` kernels, whose
-compilation costs seconds more on the first call; the result never depends on the thread count,
-since every task writes its own outputs.
+and kd-tree builds, the VPL tracer, the render) split their work into independent ranges or tasks.
+They run as ``@njit(nogil=True)`` kernels on a thread pool rather than as ``parallel=True`` kernels,
+whose compilation costs seconds more on the first call; the result never depends on the thread
+count, since every task writes its own outputs. Kernels whose tasks differ in cost (pixels, light
+paths) take them one at a time from a shared counter (:func:`next_task`).
 """
 
 from __future__ import annotations
