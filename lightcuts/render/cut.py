@@ -457,25 +457,22 @@ def _sift_down(heap_key, heap_slot, size, key, slot):
 
 
 @njit(cache=True, error_model="numpy")
-def _flush(occluded_n, width, scene, pk, lanes, lane_slot, slot_node, slot_mgv, slot_ratio, node_b):
+def _flush(occluded_n, width, scene, pk, lanes, lane_slot, slot_node, slot_mgv, slot_ratio, node_b, t0, t1, t2):
     """Cast the waiting shadow rays (lanes 0..lanes-1 of the packet pk) and zero the estimate of
-    each slot whose ray is occluded. Returns the RGB estimate so removed from the cut's total."""
+    each slot whose ray is occluded. Returns the cut's RGB total t less the estimates so removed."""
     packet_occluded(occluded_n, width, scene, pk, lanes)
-    e0 = 0.0
-    e1 = 0.0
-    e2 = 0.0
     for r in range(lanes):
         q = lane_slot[r]
         if q >= 0 and lane_occluded(pk, width, r):
             k = slot_node[q]
-            e0 += slot_mgv[q, 0] * node_b[k, NB_I]
-            e1 += slot_mgv[q, 1] * node_b[k, NB_I + 1]
-            e2 += slot_mgv[q, 2] * node_b[k, NB_I + 2]
+            t0 -= slot_mgv[q, 0] * node_b[k, NB_I]
+            t1 -= slot_mgv[q, 1] * node_b[k, NB_I + 1]
+            t2 -= slot_mgv[q, 2] * node_b[k, NB_I + 2]
             slot_mgv[q, 0] = 0.0
             slot_mgv[q, 1] = 0.0
             slot_mgv[q, 2] = 0.0
             slot_ratio[q] = 1.0
-    return e0, e1, e2
+    return t0, t1, t2
 
 
 @njit(cache=True, error_model="numpy")
@@ -532,11 +529,8 @@ def lightcut(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, e
         if heap_key[0] <= eps * luminance(t0, t1, t2):
             if lanes == 0:
                 break
-            e0, e1, e2 = _flush(occluded_n, width, scene, pk, lanes, lane_slot, slot_node, slot_mgv, slot_ratio,
-                                node_b)
-            t0 -= e0
-            t1 -= e1
-            t2 -= e2
+            t0, t1, t2 = _flush(occluded_n, width, scene, pk, lanes, lane_slot, slot_node, slot_mgv, slot_ratio,
+                                node_b, t0, t1, t2)
             lanes = 0
             continue
         # The top s leaves the heap; its first child with a bound takes its place (one sift down
@@ -549,11 +543,8 @@ def lightcut(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, e
         jr = np.int64(node_bi[left + 1, NB_REP])
         if lanes + (jl != prep) + (jr != prep) > width:
             # Cast before s's estimate leaves t: a waiting ray of s may change that estimate.
-            e0, e1, e2 = _flush(occluded_n, width, scene, pk, lanes, lane_slot, slot_node, slot_mgv, slot_ratio,
-                                node_b)
-            t0 -= e0
-            t1 -= e1
-            t2 -= e2
+            t0, t1, t2 = _flush(occluded_n, width, scene, pk, lanes, lane_slot, slot_node, slot_mgv, slot_ratio,
+                                node_b, t0, t1, t2)
             lanes = 0
         # s's waiting ray, if any, follows s's representative: it stays with the left child (which
         # takes s's slot) or moves to the right child's new slot, or nobody needs it any more.
@@ -616,14 +607,11 @@ def lightcut(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, e
             t2 += m2 * node_b[c, NB_I + 2]
         n_slots += 1
         if lanes == width:
-            e0, e1, e2 = _flush(occluded_n, width, scene, pk, lanes, lane_slot, slot_node, slot_mgv, slot_ratio,
-                                node_b)
-            t0 -= e0
-            t1 -= e1
-            t2 -= e2
+            t0, t1, t2 = _flush(occluded_n, width, scene, pk, lanes, lane_slot, slot_node, slot_mgv, slot_ratio,
+                                node_b, t0, t1, t2)
             lanes = 0
     if lanes > 0:
-        _flush(occluded_n, width, scene, pk, lanes, lane_slot, slot_node, slot_mgv, slot_ratio, node_b)
+        _flush(occluded_n, width, scene, pk, lanes, lane_slot, slot_node, slot_mgv, slot_ratio, node_b, t0, t1, t2)
 
     # The final sum again, from the cut itself: the running total above drifts by cancellation.
     t0 = 0.0
