@@ -2,7 +2,7 @@ r"""numba kernels that call Embree 4 (``rtcIntersect1`` / ``rtcOccluded1``) per 
 ``rtcOccluded4`` / ``rtcOccluded8`` per packet of shadow rays.
 
 The per-ray device functions here are what other kernels (the cut evaluator, the particle tracer)
-call inside their own ``prange`` loops; the batch kernels at the bottom are what
+call inside their own loops over rays; the batch kernels at the bottom are what
 :class:`lightcuts.accel.embree.EmbreeCaster` runs for its ``intersect`` / ``occluded``.
 
 Handles

@@ -69,7 +69,9 @@ and follows its representative when the slot is refined. The cut, its shadow ray
 came out the same as casting each ray at once, bit for bit (the stop test's total may differ in
 rounding only, and the final sum is recomputed from the cut). Measured on the Cornell box with a
 glossy floor, 21,000 lights, 128 x 128, one thread: 7.7 rays a packet on average, and by cycle
-counts 215 cycles a shadow ray instead of 376. The roots' rays (one per tree) are still cast singly.
+counts 215 cycles a shadow ray instead of 376. The whole render: 4% less time on one thread (10^5
+lights, a 128 x 128 crop, the two versions in one process alternating 12 times: 1.40 s against
+1.46 s). The roots' rays (one per tree) are still cast singly.
 
 Scratch (one set per thread, reused across receivers), ``cap = max(max_cut, n_roots) + 2``
 (the heap keeps a -inf sentinel after its last entry):

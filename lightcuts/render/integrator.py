@@ -21,10 +21,13 @@ by one thread from its own counters and written to its own output cells (no shar
 accumulator), so images do not depend on the thread count or the scheduling. The kernel is a
 ``nogil`` function on lightcuts.parallel's threads rather than a ``parallel=True`` one: on a cold
 numba cache the kernel itself compiled in 1.3 s instead of 6.3 s, and the first render of a small
-image took 14 s instead of 24 s; renders are as fast or a little faster (Cornell box 512 x 512:
-10.9-11.7 s against 11.5-12.0 s, alternating runs; per-thread scratch instead of per-chunk). All light types share one kernel specialisation: the trees are
-flattened into one forest with global node and light ids (lightcuts.render.cut.build_forest; absent
-types contribute no root), and the reference runs the same kernel without trees.
+image took 14 s instead of 24 s; renders are as fast or a little faster (scratch once per thread
+instead of once per chunk; Cornell box 512 x 512: 10.9-11.7 s against 11.5-12.0 s, alternating
+runs).
+
+All light types share one kernel specialisation: the trees are flattened into one forest with
+global node and light ids (lightcuts.render.cut.build_forest; absent types contribute no root), and
+the reference runs the same kernel without trees.
 
 numba caches each module's kernels keyed on that module's source file only: after editing bounds,
 shading, cut, reference or camera, delete ``lightcuts/render/__pycache__/*.nb[ic]`` (or touch this
