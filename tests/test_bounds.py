@@ -8,12 +8,19 @@ cone bound >= the true cosine; and the clamped bound >= the clamped contribution
 import math
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from numba import njit
 
 from lightcuts.render.bounds import (BOUND_SLACK, DIRECTIONAL, OMNI, ORIENTED, box_distance2, cluster_error_bound,
                                      cone_cos_bound, geometric_bound, material_bound, max_cos_in_box)
+from lightcuts.lights.lightset import LUMINANCE, LightSet
+from lightcuts.render.bounds import receiver_frames
+from lightcuts.render.cut import (LF_INDIRECT, LF_NRM, LF_POS, LF_TYPE, NB_I, NF_I, NK_LEFT, NK_REP, NK_RIGHT,
+                                  _light_mg, build_forest, node_bound)
 from lightcuts.render.shading import facing_normal, reflect, unshadowed_contribution
+from lightcuts.trees.build import build_tree
 
 SETTINGS = settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
@@ -224,3 +231,84 @@ def test_oriented_lights_facing_away_have_zero_bound():
     assert cone_cos_bound(*x, *lo, *hi, *axis, math.cos(math.radians(20))) == 0.0
     assert cone_cos_bound(*x, *lo, *hi, *-axis, math.cos(math.radians(20))) == 1.0
     assert cone_cos_bound(*x, *lo, *hi, *axis, -1.0) == 1.0
+
+
+# The kernel's own path: node records packed to float32 (boxes rounded outwards, cones widened), the
+# bound read from them by lightcuts.render.cut.node_bound, against every light below each node.
+
+@njit(cache=True)
+def _packed_bounds(node_b, node_bi, x, n, r, rd, rs, exponent, clamp_d2, out):
+    fr = receiver_frames(n[0], n[1], n[2], r[0], r[1], r[2])
+    for k in range(node_b.shape[0]):
+        out[k] = node_bound(k, node_b, node_bi, x[0], x[1], x[2], n[0], n[1], n[2], r[0], r[1], r[2], fr,
+                            rd[0], rd[1], rd[2], rs[0], rs[1], rs[2], exponent, clamp_d2)
+
+
+@njit(cache=True)
+def _contributions(light_f, light_i, x, n, r, rd, rs, exponent, clamp_d2, out):
+    """M G I per RGB channel of every light (V = 1), as the cut computes it for a representative."""
+    for j in range(light_f.shape[0]):
+        c2 = clamp_d2 if light_f[j, LF_INDIRECT] > 0.0 else 0.0
+        res = _light_mg(np.int64(light_f[j, LF_TYPE]), light_f[j, LF_POS], light_f[j, LF_POS + 1],
+                        light_f[j, LF_POS + 2], light_f[j, LF_NRM], light_f[j, LF_NRM + 1], light_f[j, LF_NRM + 2],
+                        c2, x[0], x[1], x[2], n[0], n[1], n[2], r[0], r[1], r[2], rd[0], rd[1], rd[2],
+                        rs[0], rs[1], rs[2], exponent, 0.0)
+        lit = res[4]
+        out[j, 0] = res[0] * light_i[j, 0] if lit else 0.0
+        out[j, 1] = res[1] * light_i[j, 1] if lit else 0.0
+        out[j, 2] = res[2] * light_i[j, 2] if lit else 0.0
+
+
+def _random_light_sets(rng):
+    """Clustered lights of every type, a third of them in pairs at one point with one normal. Those
+    pairs become clusters whose bound equals their contribution up to BOUND_SLACK, so that a record
+    rounded inwards (a float32 box rounded to nearest) fails the test."""
+    centres = rng.uniform(-3, 3, (6, 3))
+    pos = centres[rng.integers(0, 6, 300)] + rng.normal(scale=0.05, size=(300, 3)) * rng.uniform(0, 1, (300, 1))
+    facing = unit(rng, 6)
+    nrm = normalized(facing[rng.integers(0, 6, 300)] + rng.normal(scale=0.1, size=(300, 3)))
+    inten = rng.uniform(0, 1, (300, 3)) * rng.uniform(0.01, 10, (300, 1))
+    dirs = normalized(unit(rng)[None, :] + rng.normal(scale=0.2, size=(40, 3)))
+    pos[1:100:3], nrm[1:100:3] = pos[0:99:3], nrm[0:99:3]
+    pos[101:300:3], nrm[101:300:3] = pos[100:299:3], nrm[100:299:3]
+    dirs[1:40:3] = dirs[0:39:3]
+    return {
+        "omni": LightSet(pos[:100], np.zeros((100, 3)), inten[:100], "omni", rng.random(100) < 0.5),
+        "oriented": LightSet(pos[100:], nrm[100:], inten[100:], "oriented", rng.random(200) < 0.5),
+        "directional": LightSet(dirs, np.zeros((40, 3)), inten[:40], "directional"),
+    }
+
+
+@pytest.mark.parametrize("builder", ["agglomerative", "divisive-6d"])
+def test_packed_node_records_bound_every_light_below_them(builder):
+    rng = np.random.default_rng(5)
+    for trial in range(4):
+        sets = _random_light_sets(rng)
+        trees = {k: build_tree(v, builder, "walter2008", seed=trial) for k, v in sets.items()}
+        forest = build_forest(sets, trees)
+        k_nodes = len(forest.node_k)
+        left, right, rep = forest.node_k[:, NK_LEFT], forest.node_k[:, NK_RIGHT], forest.node_k[:, NK_REP]
+        bounds, contrib = np.empty(k_nodes), np.empty((len(forest.light_f), 3))
+        inner = left >= 0
+        # A record holds the summed intensity rounded to the nearest float32 (estimate and bound
+        # alike; cut.pack_nodes): the lights' sum is scaled by the same rounding.
+        rounding = np.divide(forest.node_b[:, NB_I:NB_I + 3], forest.node_f[:, NF_I:NF_I + 3],
+                             out=np.ones((k_nodes, 3)), where=forest.node_f[:, NF_I:NF_I + 3] > 0)
+        checked = 0
+        for _ in range(40):
+            x, n, r = random_receiver(rng)
+            if rng.random() < 0.3:   # among the lights, where boxes are near and cones matter most
+                x = sets["oriented"].position[rng.integers(200)] + rng.normal(scale=0.1, size=3)
+            rd, rs, exponent = random_material(rng)
+            clamp_d2 = float(rng.choice([0.0, 0.01, 0.3]))
+            _packed_bounds(forest.node_b, forest.node_bi, x, n, r, rd, rs, exponent, clamp_d2, bounds)
+            _contributions(forest.light_f, forest.light_i, x, n, r, rd, rs, exponent, clamp_d2, contrib)
+            # Sums of the lights below each node: children come after their parent (level order).
+            total = np.where(inner[:, None], 0.0, contrib[rep])
+            for k in np.flatnonzero(inner)[::-1]:
+                total[k] = total[left[k]] + total[right[k]]
+            total = (total * rounding) @ LUMINANCE
+            bad = inner & (bounds < total * (1.0 - 1e-12))
+            assert not bad.any(), (trial, np.flatnonzero(bad)[:5], bounds[bad][:5], total[bad][:5])
+            checked += int((inner & (total > 0)).sum())
+        assert checked > 1000
