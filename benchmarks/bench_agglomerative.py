@@ -29,6 +29,8 @@ The machine has 2 cores shared with other work: wall times are noisy (the load a
 
     python benchmarks/bench_agglomerative.py [--sizes 50000,100000,200000,400000,800000]
         [--repeats 3] [--agree-n 200000] [--greedy-n 4000] [--memory-n 1000000]
+
+A count of 0 skips that part (the agreement with the heap builder, with greedy, the peak memory).
 """
 
 from __future__ import annotations
@@ -196,28 +198,32 @@ def main() -> None:
     print(f"{'heap / local':>20}: " + ", ".join(f"{r:.2f}" for r in ratios))
 
     # Agreement with the default (non-monotone) metric.
-    lights = vpls(scene, caster, opts.agree_n)
-    share = agreement(lights, "agglomerative-heap")
-    add("agreement_local_heap", "agglomerative", len(lights), share, "share")
-    print(f"\nagglomerative vs agglomerative-heap, {len(lights)} VPLs: {100 * share:.2f}% of clusters agree")
-    small = vpls(scene, caster, opts.greedy_n)
-    share_g = agreement(small, "greedy")
-    add("agreement_local_greedy", "agglomerative", len(small), share_g, "share")
-    print(f"agglomerative vs greedy, {len(small)} VPLs: {100 * share_g:.2f}% of clusters agree")
+    if opts.agree_n > 0:
+        lights = vpls(scene, caster, opts.agree_n)
+        share = agreement(lights, "agglomerative-heap")
+        add("agreement_local_heap", "agglomerative", len(lights), share, "share")
+        print(f"\nagglomerative vs agglomerative-heap, {len(lights)} VPLs: {100 * share:.2f}% of clusters agree")
+    if opts.greedy_n > 0:
+        small = vpls(scene, caster, opts.greedy_n)
+        share_g = agreement(small, "greedy")
+        add("agreement_local_greedy", "agglomerative", len(small), share_g, "share")
+        print(f"agglomerative vs greedy, {len(small)} VPLs: {100 * share_g:.2f}% of clusters agree")
 
     with tempfile.TemporaryDirectory() as tmp:
-        # Peak memory of one build in a fresh process.
-        big = vpls(scene, caster, opts.memory_n)
+        # The compile measurement below reads the first lights of this file.
+        big = vpls(scene, caster, max(opts.memory_n, 64))
         path = os.path.join(tmp, "lights.npz")
         np.savez(path, position=big.position, normal=big.normal, luminance=big.luminance, c=default_c(big))
-        mem = child([path, "memory"], None)
-        mb = 1024.0 ** 2
-        add("peak_rss_mb", "agglomerative", len(big), mem["peak_rss"] / mb, "MB")
-        add("build_rss_mb", "agglomerative", len(big), (mem["peak_rss"] - mem["rss_before"]) / mb, "MB")
-        add("tracemalloc_peak_mb", "agglomerative", len(big), mem["tracemalloc_peak"] / mb, "MB")
-        print(f"\n{len(big)} lights: peak RSS {mem['peak_rss'] / mb:.0f} MB, growth during the build "
-              f"{(mem['peak_rss'] - mem['rss_before']) / mb:.0f} MB, numpy (tracemalloc) peak "
-              f"{mem['tracemalloc_peak'] / mb:.0f} MB")
+        if opts.memory_n > 0:
+            # Peak memory of one build in a fresh process.
+            mem = child([path, "memory"], None)
+            mb = 1024.0 ** 2
+            add("peak_rss_mb", "agglomerative", len(big), mem["peak_rss"] / mb, "MB")
+            add("build_rss_mb", "agglomerative", len(big), (mem["peak_rss"] - mem["rss_before"]) / mb, "MB")
+            add("tracemalloc_peak_mb", "agglomerative", len(big), mem["tracemalloc_peak"] / mb, "MB")
+            print(f"\n{len(big)} lights: peak RSS {mem['peak_rss'] / mb:.0f} MB, growth during the build "
+                  f"{(mem['peak_rss'] - mem['rss_before']) / mb:.0f} MB, numpy (tracemalloc) peak "
+                  f"{mem['tracemalloc_peak'] / mb:.0f} MB")
         # Compile time: an empty numba cache, then the filled one.
         cache = os.path.join(tmp, "numba_cache")
         cold = child([path, "compile"], cache)["first_call_s"]
