@@ -95,7 +95,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from lightcuts.parallel import on_threads
+from lightcuts.parallel import next_task, on_threads
 from lightcuts.rounding import down32, up32
 from lightcuts.trees.cones import cone_from_box
 from lightcuts.trees.metrics import metric_eval
@@ -838,17 +838,30 @@ def kd_group_by_leaf(kd, todo, n_todo, tmp):
 
 
 @njit(cache=True, nogil=True)
-def kd_search_range(kd, todo, n_todo, best, best_d, metric_id, has_cone, use_cone, c, s, e):
-    """best[a], best_d[a] = findBestMatch(a) for the clusters of ``todo[:n_todo]`` in the groups that
-    start in [s, e): one thread's share of a round.
+def kd_search_range(kd, todo, n_todo, best, best_d, metric_id, has_cone, use_cone, c, tasks, chunk):
+    """best[a], best_d[a] = findBestMatch(a) for the clusters of ``todo[:n_todo]``: one thread's share
+    of a round, chunks of ``chunk`` entries of todo taken from the counter ``tasks`` (int64 (1,), zero
+    at the start; lightcuts.parallel.next_task) until none is left.
 
     A group is a run of ``todo`` in one kd leaf (at most a leaf size long), searched together
-    (:func:`kd_best_match_group`); order ``todo`` with :func:`kd_group_by_leaf` first. Groups
-    depend on ``todo`` only, not on [s, e), and each search writes its own entries, so the result
-    does not depend on how a round is split among threads.
+    (:func:`kd_best_match_group`) by the thread whose chunk holds its start; order ``todo`` with
+    :func:`kd_group_by_leaf` first. Groups depend on ``todo`` only, not on the chunks, and each
+    search writes its own entries, so the result does not depend on how a round is split among
+    threads. Chunks rather than one range per thread: the two cores are shared with other work and
+    often run at different speeds, and a thread that finishes first takes the next chunk instead of
+    waiting at the end of the round.
     """
-    if s >= e:
-        return
+    while True:
+        t = next_task(tasks)
+        if t * chunk >= n_todo:
+            return
+        _search_groups(kd, todo, n_todo, best, best_d, metric_id, has_cone, use_cone, c, t * chunk,
+                       min(n_todo, (t + 1) * chunk))
+
+
+@njit(cache=True, nogil=True)
+def _search_groups(kd, todo, n_todo, best, best_d, metric_id, has_cone, use_cone, c, s, e):
+    """:func:`kd_search_range`'s work for the groups that start in todo[s:e]."""
     kdt = kd_scratch(kd)
     slot_of = kd[2]
     slot_leaf = kd[3]
@@ -1009,7 +1022,8 @@ def _best_matches_after(position, normal, luminance, merges, metric_id, has_cone
         kd_group_by_leaf(kd, todo, todo.shape[0], np.empty(todo.shape[0], np.int64))
         by_id = np.full(2 * n - 1, -1, np.int32)
         by_id_d = np.empty(2 * n - 1)
-        kd_search_range(kd, todo, todo.shape[0], by_id, by_id_d, metric_id, has_cone, use_cone, c, 0, todo.shape[0])
+        kd_search_range(kd, todo, todo.shape[0], by_id, by_id_d, metric_id, has_cone, use_cone, c,
+                        np.zeros(1, np.int64), 64)
         for i in range(active.shape[0]):
             best[i] = by_id[active[i]]
             best_d[i] = by_id_d[active[i]]
