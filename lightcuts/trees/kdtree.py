@@ -851,17 +851,6 @@ def kd_search_range(kd, todo, n_todo, best, best_d, metric_id, has_cone, use_con
     often run at different speeds, and a thread that finishes first takes the next chunk instead of
     waiting at the end of the round.
     """
-    while True:
-        t = next_task(tasks)
-        if t * chunk >= n_todo:
-            return
-        _search_groups(kd, todo, n_todo, best, best_d, metric_id, has_cone, use_cone, c, t * chunk,
-                       min(n_todo, (t + 1) * chunk))
-
-
-@njit(cache=True, nogil=True)
-def _search_groups(kd, todo, n_todo, best, best_d, metric_id, has_cone, use_cone, c, s, e):
-    """:func:`kd_search_range`'s work for the groups that start in todo[s:e]."""
     kdt = kd_scratch(kd)
     slot_of = kd[2]
     slot_leaf = kd[3]
@@ -871,20 +860,26 @@ def _search_groups(kd, todo, n_todo, best, best_d, metric_id, has_cone, use_cone
     gd = np.empty(cap)
     mb = np.empty(cap)
     lt = np.empty((S_I + 1, cap))
-    # The first group that starts at or after s: groups are cut from the start of each run.
-    i = s
-    while i > 0 and slot_leaf[slot_of[todo[i - 1]]] == slot_leaf[slot_of[todo[s]]]:
-        i -= 1
-    while i < s:
-        i = _group_end(todo, n_todo, slot_of, slot_leaf, i, cap)
-    while i < e:
-        j = _group_end(todo, n_todo, slot_of, slot_leaf, i, cap)
-        # Groups of one too: a call of kd_best_match here would compile it a second time (seconds).
-        kd_best_match_group(kdt, todo, i, j, metric_id, has_cone, use_cone, c, gq, gb, gd, mb, lt)
-        for m in range(j - i):
-            best[todo[i + m]] = gb[m]
-            best_d[todo[i + m]] = gd[m]
-        i = j
+    while True:
+        t = next_task(tasks)
+        s = t * chunk
+        if s >= n_todo:
+            return
+        e = min(n_todo, s + chunk)
+        # The first group that starts at or after s: groups are cut from the start of each run.
+        i = s
+        while i > 0 and slot_leaf[slot_of[todo[i - 1]]] == slot_leaf[slot_of[todo[s]]]:
+            i -= 1
+        while i < s:
+            i = _group_end(todo, n_todo, slot_of, slot_leaf, i, cap)
+        while i < e:
+            j = _group_end(todo, n_todo, slot_of, slot_leaf, i, cap)
+            # Groups of one too: a call of kd_best_match here would compile it a second time (seconds).
+            kd_best_match_group(kdt, todo, i, j, metric_id, has_cone, use_cone, c, gq, gb, gd, mb, lt)
+            for m in range(j - i):
+                best[todo[i + m]] = gb[m]
+                best_d[todo[i + m]] = gd[m]
+            i = j
 
 
 @njit(cache=True, nogil=True)
