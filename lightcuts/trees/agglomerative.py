@@ -24,12 +24,12 @@ The searches of a round only read the kd-tree and each writes its own cluster's 
 on the numba threads (rounds of at least ``PARALLEL_MIN`` searches; each thread takes chunks of
 ``SEARCH_CHUNK`` clusters from a shared counter, so that a thread on a slower core does not hold up
 the round: 1-2% less build time than one half-range per thread in same-process A/B runs) and the
-tree does not depend on the thread count. Each round's clusters are ordered by kd leaf, and the clusters of a leaf are
-searched together (:func:`~lightcuts.trees.kdtree.kd_search_range`), sharing their node bounds
-(40% less search time than one search per cluster). The pairs are chosen on one thread, in a fixed
-order, which numbers the nodes; the kd-tree then merges them, those within one of the subtrees
-below its top levels on the threads (:func:`~lightcuts.trees.kdtree.kd_merge_batch`), the others
-after them.
+tree does not depend on the thread count. Each round's clusters are ordered by kd leaf, and the
+clusters of a leaf are searched together (:func:`~lightcuts.trees.kdtree.kd_search_range`),
+sharing their node bounds (40% less search time than one search per cluster). The pairs are chosen
+on one thread, in a fixed order, which numbers the nodes; the kd-tree then merges them, those
+within one of the subtrees below its top levels on the threads
+(:func:`~lightcuts.trees.kdtree.kd_merge_batch`), the others after them.
 
 Why it is Fig. 4: a pair is merged only when neither has a better partner (B's best d is no smaller
 than d(A u B)), the condition under which Fig. 4's chain merges; with a non-decreasing metric such
