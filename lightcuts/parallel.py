@@ -56,6 +56,13 @@ def on_threads(kernel, n: int, min_n: int, *args) -> None:
     run_all(lambda t: kernel(*args, cuts[t], cuts[t + 1]), range(threads))
 
 
+def on_counter(kernel, n: int, min_n: int, *args) -> None:
+    """``kernel(*args, tasks)`` on every thread (:func:`threads_for` of n items), ``tasks`` a fresh
+    shared counter (int64 (1,), zero) from which each takes its work with :func:`next_task`."""
+    tasks = np.zeros(1, np.int64)
+    run_all(lambda _: kernel(*args, tasks), range(threads_for(n, min_n)))
+
+
 @intrinsic
 def next_task(typingctx, counter):
     """In a kernel: atomically ``counter[0] += 1``, returning the value before (an int64 array of

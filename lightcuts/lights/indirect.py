@@ -55,7 +55,7 @@ from numba import njit, prange
 from lightcuts.accel.embree_kernels import new_ray_buffer, ray_intersect
 from lightcuts.hashing import mix64 as _mix64
 from lightcuts.lights.lightset import LUMINANCE, LightSet
-from lightcuts.parallel import next_task, run_all, threads_for
+from lightcuts.parallel import next_task, on_counter
 
 # Stream tags for the counter-based hash: the pilot's paths are independent of the run's.
 _STREAM_RUN = 0x52554E
@@ -306,9 +306,8 @@ def _trace_chunk_fused(caster, handles, emitters, geometry, key, path0, n, power
     counts = np.empty(n, np.int64)
     vpos, vnrm, vint = (np.empty((n * slots, 3)) for _ in range(3))
     args = (intersect1, scene_handle, key, path0, n, emitters.cdf, emitters.p0, emitters.e1, emitters.e2,
-            emitters.normal, power, eps, *geometry, max_bounces, rr_start, slots, counts, vpos, vnrm, vint,
-            np.zeros(1, np.int64))
-    run_all(lambda _: _trace_fused(*args), range(threads_for(n, 2 * _FUSED_CHUNK)))
+            emitters.normal, power, eps, *geometry, max_bounces, rr_start, slots, counts, vpos, vnrm, vint)
+    on_counter(_trace_fused, n, 2 * _FUSED_CHUNK, *args)
     if count_only:
         return int(counts.sum())
     used = (np.arange(slots)[None, :] < counts[:, None]).ravel()

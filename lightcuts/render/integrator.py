@@ -50,7 +50,7 @@ from lightcuts.accel.embree_kernels import new_ray_buffer, new_ray_packet, ray_i
 from lightcuts.errors import LightcutsError
 from lightcuts.lights.environment import envmap_radiance
 from lightcuts.lights.lightset import LUMINANCE
-from lightcuts.parallel import next_task, run_all, threads_for
+from lightcuts.parallel import next_task, on_counter
 from lightcuts.render.camera import CAM_POSITION, camera_params, check_crop, eye_ray, strata
 from lightcuts.render.cut import build_forest, lightcut
 from lightcuts.render.reference import all_lights
@@ -257,13 +257,11 @@ def _render(scene, caster, lights, trees, camera, spp, eps, max_cut, clamp, clam
     f = forest
     for b0 in range(0, rows, band):
         b1 = min(rows, b0 + band)
-        tasks = np.zeros(1, np.int64)
-        args = (intersect1, occluded1, occluded_n, width, scene_handle, cam, seed, spp, sx, sy, x0, x1, y0 + b0,
-                y0 + b1, face_normal, albedo, specular, exponent, emission, f.node_b, f.node_bi, f.roots, f.light_f,
-                f.light_i, env_pixels, env_rotation, env_scale, float(eps), max_cut, float(clamp_d2),
-                float(ray_offset), bool(visibility), bool(reference), rgb[b0:b1], cut[b0:b1], rays[b0:b1],
-                lost[b0:b1], tasks)
-        run_all(lambda _: _render_band(*args), range(threads_for((b1 - b0) * cols, 2 * CHUNK)))
+        on_counter(_render_band, (b1 - b0) * cols, 2 * CHUNK, intersect1, occluded1, occluded_n, width,
+                   scene_handle, cam, seed, spp, sx, sy, x0, x1, y0 + b0, y0 + b1, face_normal, albedo, specular,
+                   exponent, emission, f.node_b, f.node_bi, f.roots, f.light_f, f.light_i, env_pixels,
+                   env_rotation, env_scale, float(eps), max_cut, float(clamp_d2), float(ray_offset),
+                   bool(visibility), bool(reference), rgb[b0:b1], cut[b0:b1], rays[b0:b1], lost[b0:b1])
         if progress is not None:
             progress(b1 - b0)
 

@@ -72,7 +72,7 @@ import numpy as np
 from numba import njit
 
 from lightcuts.errors import LightcutsError
-from lightcuts.parallel import on_threads, run_all, threads_for
+from lightcuts.parallel import on_counter, on_threads
 from lightcuts.trees.kdtree import (KD_SUBTREES, LEAF_SIZE, kd_best_match, kd_build, kd_build_threaded,
                                     kd_group_by_leaf, kd_merge, kd_merge_batch, kd_merge_batch_finish, kd_new,
                                     kd_search_range, kd_subtree, kd_wants_rebuild)
@@ -275,9 +275,8 @@ def _locally_ordered(position, normal, luminance, order, metric_id, has_cone, us
     todo[:] = kd[1]
     n_todo = n
     while counters[C_NEXT] < left.shape[0]:
-        tasks = np.zeros(1, np.int64)
-        run_all(lambda _: kd_search_range(kd, todo, n_todo, best, best_d, metric_id, has_cone, use_cone, c, tasks,
-                                          SEARCH_CHUNK), range(threads_for(n_todo, parallel_min)))
+        on_counter(kd_search_range, n_todo, parallel_min, kd, todo, n_todo, best, best_d, metric_id, has_cone,
+                   use_cone, c, SEARCH_CHUNK)
         new0 = int(counters[C_NEXT])
         n_todo = _pair_round(kd, todo, n_todo, todo_next, best, best_d, head, nxt, left, right, pair_sub, counters)
         _merge_pairs(kd, left, right, new0, int(counters[C_NEXT]) - new0, pair_sub, parallel_min)

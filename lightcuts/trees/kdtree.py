@@ -838,7 +838,7 @@ def kd_group_by_leaf(kd, todo, n_todo, tmp):
 
 
 @njit(cache=True, nogil=True)
-def kd_search_range(kd, todo, n_todo, best, best_d, metric_id, has_cone, use_cone, c, tasks, chunk):
+def kd_search_range(kd, todo, n_todo, best, best_d, metric_id, has_cone, use_cone, c, chunk, tasks):
     """best[a], best_d[a] = findBestMatch(a) for the clusters of ``todo[:n_todo]``: one thread's share
     of a round, chunks of ``chunk`` entries of todo taken from the counter ``tasks`` (int64 (1,), zero
     at the start; lightcuts.parallel.next_task) until none is left.
@@ -1017,8 +1017,8 @@ def _best_matches_after(position, normal, luminance, merges, metric_id, has_cone
         kd_group_by_leaf(kd, todo, todo.shape[0], np.empty(todo.shape[0], np.int64))
         by_id = np.full(2 * n - 1, -1, np.int32)
         by_id_d = np.empty(2 * n - 1)
-        kd_search_range(kd, todo, todo.shape[0], by_id, by_id_d, metric_id, has_cone, use_cone, c,
-                        np.zeros(1, np.int64), 64)
+        kd_search_range(kd, todo, todo.shape[0], by_id, by_id_d, metric_id, has_cone, use_cone, c, 64,
+                        np.zeros(1, np.int64))
         for i in range(active.shape[0]):
             best[i] = by_id[active[i]]
             best_d[i] = by_id_d[active[i]]
