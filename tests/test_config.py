@@ -37,6 +37,7 @@ def write(tmp_path, text, name="run.yaml"):
     ("- 1\n- 2\n", "expected a mapping"),
     ("scene: {builtin: cornell}\ncamera: {resolution: [0, 10]}\n", "camera.resolution.0:"),
     ("scene: {builtin: cornell}\nrender: {eps: .nan}\n", "render.eps:"),
+    ("scene: {builtin: cornell}\nrender: {max_cut: 2000000}\n", "render.max_cut:"),
     ("scene: {builtin: cornell}\nlights: {sun: {direction: [0, .inf, 0], irradiance: [1, 1, 1]}}\n",
      "lights.sun.direction.1:"),
 ])
@@ -71,3 +72,9 @@ def test_paths_resolve_against_config_folder(tmp_path):
     p = write(tmp_path / "sub", "scene: {meshes: [{file: m.obj}]}\n")
     cfg = load_config(p)
     assert cfg.resolve(cfg.scene.meshes[0].file) == (tmp_path / "sub" / "m.obj").resolve()
+
+
+def test_max_cut_limit_is_the_renderers():
+    from lightcuts.config import schema
+    from lightcuts.render import cut
+    assert schema.MAX_CUT == cut.MAX_CUT

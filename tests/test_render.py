@@ -16,8 +16,8 @@ from lightcuts.lights.environment import EnvironmentMap
 from lightcuts.lights.indirect import indirect_lights
 from lightcuts.lights.lightset import LUMINANCE, LightSet
 from lightcuts.render.camera import eye_rays, strata
-from lightcuts.render.cut import (LF_INDIRECT, LF_POS, NF_HI, NF_I, NF_LO, NK_ALL_INDIRECT, NK_LEFT, NK_REP,
-                                  NK_RIGHT, build_forest)
+from lightcuts.render.cut import (LF_INDIRECT, LF_POS, MAX_CUT, NF_HI, NF_I, NF_LO, NK_ALL_INDIRECT, NK_LEFT,
+                                  NK_REP, NK_RIGHT, build_forest)
 from lightcuts.render.integrator import num_threads, render_image, render_reference
 from lightcuts.scene.cornell import cornell_box
 from lightcuts.scene.scene import Camera, Scene
@@ -296,6 +296,8 @@ def test_bad_inputs_raise_one_line_errors(cornell):
         render_image(scene, caster, lights, trees, camera=camera, crop=(0, 0, 49, 10))
     with pytest.raises(LightcutsError, match="render.eps"):
         render_image(scene, caster, lights, trees, camera=camera, eps=float("nan"))
+    with pytest.raises(LightcutsError, match="render.max_cut"):
+        render_image(scene, caster, lights, trees, camera=camera, max_cut=MAX_CUT + 1)
     with pytest.raises(LightcutsError, match="no tree for the"):
         render_image(scene, caster, lights, {}, camera=camera)
     small = build_tree(direct_lights(scene, 8, seed=0), "divisive-6d", "walter2008")

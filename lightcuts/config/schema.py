@@ -17,6 +17,9 @@ from lightcuts.errors import LightcutsError
 
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 PositiveInt = Annotated[int, Field(ge=1)]
+#: The largest cut the renderer's heap entries can number (lightcuts.render.cut.MAX_CUT; a test
+#: checks that the two agree): kept here so that reading a config does not import the kernels.
+MAX_CUT = (1 << 20) - 2
 
 
 class Strict(BaseModel):
@@ -137,7 +140,7 @@ class Clamp(Strict):
 class RenderConfig(Strict):
     spp: PositiveInt = 1
     eps: Annotated[float, Field(ge=0)] = 0.02
-    max_cut: PositiveInt = 1000
+    max_cut: Annotated[int, Field(ge=1, le=MAX_CUT)] = 1000
     clamp: Clamp = Clamp()
     exposure: float = 0.0  # stops, applied to the PNG only
     ray_caster: str = "embree"

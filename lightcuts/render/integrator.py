@@ -52,7 +52,7 @@ from lightcuts.lights.environment import envmap_radiance
 from lightcuts.lights.lightset import LUMINANCE
 from lightcuts.parallel import next_task, on_counter
 from lightcuts.render.camera import CAM_POSITION, camera_params, check_crop, eye_ray, strata
-from lightcuts.render.cut import build_forest, lightcut
+from lightcuts.render.cut import MAX_CUT, build_forest, lightcut
 from lightcuts.render.reference import all_lights
 from lightcuts.render.shading import facing_normal, reflect
 
@@ -103,7 +103,7 @@ class RenderResult:
 def _render_pixel(intersect1, occluded1, occluded_n, width, scene, cam, seed, spp, sx, sy, px, py,
                   face_normal, albedo, specular, exponent, emission, node_b, node_bi, roots, light_f, light_i,
                   env_pixels, env_rotation, env_scale, eps, max_cut, clamp_d2, ray_offset, visibility, reference,
-                  buf, pk, heap_key, heap_slot, slot_node, slot_mgv, slot_ratio, lane_slot):
+                  buf, pk, heap, slot_node, slot_mgv, slot_ratio, lane_slot):
     """All eye rays of pixel (px, py): returns (L_r, L_g, L_b, cut, shadow_rays, clamp_lost), cut
     and clamp_lost summed over the eye rays. An empty env_pixels (0, 0, 3) means no environment."""
     o0, o1, o2 = cam[CAM_POSITION], cam[CAM_POSITION + 1], cam[CAM_POSITION + 2]
@@ -142,7 +142,7 @@ def _render_pixel(intersect1, occluded1, occluded_n, width, scene, cam, seed, sp
         else:
             res = lightcut(p0, p1, p2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, exponent[prim],
                            node_b, node_bi, roots, light_f, eps, max_cut, clamp_d2, ray_offset, visibility,
-                           occluded1, scene, buf, occluded_n, width, pk, heap_key, heap_slot, slot_node, slot_mgv,
+                           occluded1, scene, buf, occluded_n, width, pk, heap, slot_node, slot_mgv,
                            slot_ratio, lane_slot)
         a0 += res[0]
         a1 += res[1]
@@ -171,8 +171,7 @@ def _render_band(intersect1, occluded1, occluded_n, width, scene, cam, seed, spp
     buf = new_ray_buffer()
     pk = new_ray_packet()
     lane_slot = np.empty(width, np.int64)
-    heap_key = np.empty(cap)
-    heap_slot = np.empty(cap, np.int64)
+    heap = np.empty(cap, np.uint64)
     slot_node = np.empty(cap, np.int64)
     slot_mgv = np.empty((cap, 3))
     slot_ratio = np.empty(cap)
@@ -187,7 +186,7 @@ def _render_band(intersect1, occluded1, occluded_n, width, scene, cam, seed, spp
                 intersect1, occluded1, occluded_n, width, scene, cam, seed, spp, sx, sy, x0 + col, y0 + row,
                 face_normal, albedo, specular, exponent, emission, node_b, node_bi, roots, light_f, light_i,
                 env_pixels, env_rotation, env_scale, eps, max_cut, clamp_d2, ray_offset, visibility, reference,
-                buf, pk, heap_key, heap_slot, slot_node, slot_mgv, slot_ratio, lane_slot)
+                buf, pk, heap, slot_node, slot_mgv, slot_ratio, lane_slot)
             out_rgb[row, col, 0] = a0 / spp
             out_rgb[row, col, 1] = a1 / spp
             out_rgb[row, col, 2] = a2 / spp
@@ -219,8 +218,8 @@ def _render(scene, caster, lights, trees, camera, spp, eps, max_cut, clamp, clam
         raise LightcutsError(f"render.spp: {spp} must be a positive integer")
     if not (eps >= 0 and math.isfinite(eps)):
         raise LightcutsError(f"render.eps: {eps} must be a finite number >= 0")
-    if int(max_cut) != max_cut or max_cut < 1:
-        raise LightcutsError(f"render.max_cut: {max_cut} must be a positive integer")
+    if int(max_cut) != max_cut or not 1 <= max_cut <= MAX_CUT:
+        raise LightcutsError(f"render.max_cut: {max_cut} must be an integer from 1 to {MAX_CUT}")
     if not (clamp_min_distance >= 0 and math.isfinite(clamp_min_distance)):
         raise LightcutsError(f"render.clamp.min_distance: {clamp_min_distance} must be a finite number >= 0")
     if int(seed) != seed or seed < 0:
