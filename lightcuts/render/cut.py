@@ -51,19 +51,19 @@ order depends on the bounds only), and indexes with unsigned integers: numba tes
 index for a negative value to wrap around, three instructions on the sift's chain of dependent
 loads at every level. Together about 4% less CPU time for the whole image (one thread, the two
 versions alternating band by band on one core, twice; alone: about 1% and nothing). Images are
-unchanged (the same operations in the same order). A heap entry is one uint64, the bound's bits
-and its slot (:func:`_heap_entry`), rather than a float64 key beside an int64 slot: one load and
-one store a level instead of two each, and integer compares on the sift's chain; 3.8% less time
-(same-process A/B, twice over 10 and 14 pairs), images the same on the benchmark's crop. Tried on top of that without a gain (same
-method, noise about 2%): computing the next top's children's bounds one refinement ahead,
-before the shadow ray, for the processor to overlap with Embree's traversal (5% slower); a 4-ary
-heap (1%, within the noise); choosing the child that needs a new light by selects instead of a
-branch per side (1-2% slower); unsigned node ids in :func:`node_bound`, a select instead of its
-leaf branch, and ``llvm.prefetch`` of both children's light rows before the bounds (a profile
-shows that row's load waiting on memory; no change either way). Two receivers' cuts interleaved
-step by step in one loop (each with its own heap, slots and packet), for the processor to overlap
-their chains of dependent latencies: images identical, 5% slower (same-process A/B, B/A 0.953 over
-10 pairs).
+unchanged (the same operations in the same order). A heap entry is one uint64, the bound's bits and
+its slot (:func:`_heap_entry`), rather than a float64 key beside an int64 slot: one load and one
+store a level instead of two each, and integer compares on the sift's chain; 3.8% less time
+(same-process A/B, twice over 10 and 14 pairs), images the same on the benchmark's crop. Tried on
+top of that without a gain (same method, noise about 2%): computing the next top's children's bounds
+one refinement ahead, before the shadow ray, for the processor to overlap with Embree's traversal
+(5% slower); a 4-ary heap (1%, within the noise); choosing the child that needs a new light by
+selects instead of a branch per side (1-2% slower); unsigned node ids in :func:`node_bound`, a
+select instead of its leaf branch, and ``llvm.prefetch`` of both children's light rows before the
+bounds (a profile shows that row's load waiting on memory; no change either way). Two receivers'
+cuts interleaved step by step in one loop (each with its own heap, slots and packet), for the
+processor to overlap their chains of dependent latencies: images identical, 5% slower (same-process
+A/B, B/A 0.953 over 10 pairs).
 
 Deferred visibility: shadow rays are cast 8 at a time (``rtcOccluded8``; 4 where the processor
 has no native 8-wide packets) rather than one by one. The order of refinement depends on the
