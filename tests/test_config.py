@@ -72,9 +72,3 @@ def test_paths_resolve_against_config_folder(tmp_path):
     p = write(tmp_path / "sub", "scene: {meshes: [{file: m.obj}]}\n")
     cfg = load_config(p)
     assert cfg.resolve(cfg.scene.meshes[0].file) == (tmp_path / "sub" / "m.obj").resolve()
-
-
-def test_max_cut_limit_is_the_renderers():
-    from lightcuts.config import schema
-    from lightcuts.render import cut
-    assert schema.MAX_CUT == cut.MAX_CUT

@@ -15,9 +15,10 @@ from lightcuts.lights.direct import direct_lights
 from lightcuts.lights.environment import EnvironmentMap
 from lightcuts.lights.indirect import indirect_lights
 from lightcuts.lights.lightset import LUMINANCE, LightSet
+from lightcuts.render import MAX_CUT
 from lightcuts.render.camera import eye_rays, strata
-from lightcuts.render.cut import (LF_INDIRECT, LF_POS, MAX_CUT, NF_HI, NF_I, NF_LO, NK_ALL_INDIRECT, NK_LEFT,
-                                  NK_REP, NK_RIGHT, build_forest)
+from lightcuts.render.cut import (LF_INDIRECT, LF_POS, NF_HI, NF_I, NF_LO, NK_ALL_INDIRECT, NK_LEFT, NK_REP,
+                                  NK_RIGHT, build_forest)
 from lightcuts.render.integrator import num_threads, render_image, render_reference
 from lightcuts.scene.cornell import cornell_box
 from lightcuts.scene.scene import Camera, Scene

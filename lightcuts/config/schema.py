@@ -14,12 +14,10 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from lightcuts.errors import LightcutsError
+from lightcuts.render import MAX_CUT
 
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 PositiveInt = Annotated[int, Field(ge=1)]
-#: The largest cut the renderer's heap entries can number (lightcuts.render.cut.MAX_CUT; a test
-#: checks that the two agree): kept here so that reading a config does not import the kernels.
-MAX_CUT = (1 << 20) - 2
 
 
 class Strict(BaseModel):

@@ -100,6 +100,7 @@ from lightcuts.accel.embree_kernels import lane_occluded, packet_occluded, packe
 from lightcuts.errors import LightcutsError
 from lightcuts.lights.lightset import LIGHT_TYPES, LUMINANCE, LightSet
 from lightcuts.parallel import on_threads
+from lightcuts.render import SLOT_BITS
 from lightcuts.rounding import down32, up32
 from lightcuts.render.bounds import DIRECTIONAL, OMNI, ORIENTED, cluster_error_bound_framed, receiver_frames
 from lightcuts.render.shading import light_geometry, material_term
@@ -442,10 +443,6 @@ def _bits_f64(typingctx, u):
     return types.float64(types.uint64), codegen
 
 
-#: Low bits of a heap entry that hold the slot: a cut holds at most ``MAX_CUT`` nodes (the scratch
-#: has max_cut + 2 slots).
-SLOT_BITS = 20
-MAX_CUT = (1 << SLOT_BITS) - 2
 _SLOT_MASK = np.uint64((1 << SLOT_BITS) - 1)
 
 

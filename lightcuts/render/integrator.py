@@ -51,8 +51,9 @@ from lightcuts.errors import LightcutsError
 from lightcuts.lights.environment import envmap_radiance
 from lightcuts.lights.lightset import LUMINANCE
 from lightcuts.parallel import next_task, on_counter
+from lightcuts.render import MAX_CUT
 from lightcuts.render.camera import CAM_POSITION, camera_params, check_crop, eye_ray, strata
-from lightcuts.render.cut import MAX_CUT, build_forest, lightcut
+from lightcuts.render.cut import build_forest, lightcut
 from lightcuts.render.reference import all_lights
 from lightcuts.render.shading import facing_normal, reflect
 
