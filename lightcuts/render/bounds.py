@@ -112,8 +112,21 @@ def _gap2(x, lo, hi):
 @njit(cache=True, error_model="numpy", forceinline=True)
 def orthonormal_frame(z0, z1, z2):
     """Two unit vectors t1, t2 with (t1, t2, z) orthonormal, for a unit z (Duff et al. 2017)."""
+    return orthonormal_frame_from(z0, z1, z2, frame_coefficient(z0, z1, z2))
+
+
+@njit(cache=True, error_model="numpy", forceinline=True)
+def frame_coefficient(z0, z1, z2):
+    """The one division of :func:`orthonormal_frame`, ``-1 / (sign(z2) + z2)`` (in [-1, -1/2]): the
+    light tree's records store it per node (lightcuts.render.cut.pack_nodes), which takes it off the
+    cone bound's chain of dependent operations."""
+    return -1.0 / ((1.0 if z2 >= 0.0 else -1.0) + z2)
+
+
+@njit(cache=True, error_model="numpy", forceinline=True)
+def orthonormal_frame_from(z0, z1, z2, a):
+    """:func:`orthonormal_frame` with its coefficient ``a`` (:func:`frame_coefficient`) given."""
     sign = 1.0 if z2 >= 0.0 else -1.0
-    a = -1.0 / (sign + z2)
     b = z0 * z1 * a
     return (1.0 + sign * z0 * z0 * a, sign * b, -sign * z0), (b, sign + z1 * z1 * a, -z1)
 
@@ -162,9 +175,11 @@ def max_cos_in_frame(z0, z1, z2, u0, u1, u2, v0, v1, v2, lo0, lo1, lo2, hi0, hi1
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
-def _cone_ratio(x0, x1, x2, lo0, lo1, lo2, hi0, hi1, hi2, a0, a1, a2, cone_cos):
+def _cone_ratio(x0, x1, x2, lo0, lo1, lo2, hi0, hi1, hi2, a0, a1, a2, cone_cos, cone_fa):
     """:func:`cone_cos_bound` as ``(num, den)``, bound = num / den with den > 0 and num >= 0 (not
-    clamped at 1): the caller folds den into the cluster bound's single division.
+    clamped at 1): the caller folds den into the cluster bound's single division. cone_fa : the
+    axis's :func:`frame_coefficient` (a frame that is orthonormal up to float32 rounding of it is
+    covered by the records' widened cones, lightcuts.render.cut.CONE_WIDEN).
 
     With ``c_lo = m / q`` (``q = sqrt(t2 + m^2)``, :func:`_frame_cos` about the axis over the vectors
     x - y) and ``sin(theta_lo) = sqrt(t2) / q``, ``cos(theta_lo - beta) = (m cos(beta) + sqrt(t2)
@@ -172,7 +187,7 @@ def _cone_ratio(x0, x1, x2, lo0, lo1, lo2, hi0, hi1, hi2, a0, a1, a2, cone_cos):
     """
     if cone_cos <= -1.0:
         return 1.0, 1.0
-    t1, t2 = orthonormal_frame(a0, a1, a2)
+    t1, t2 = orthonormal_frame_from(a0, a1, a2, cone_fa)
     # Vectors x - y for y in the box form the box [x - hi, x - lo].
     m, tt = _frame_cos(a0, a1, a2, t1[0], t1[1], t1[2], t2[0], t2[1], t2[2],
                        x0 - hi0, x1 - hi1, x2 - hi2, x0 - lo0, x1 - lo1, x2 - lo2)
@@ -195,7 +210,8 @@ def _cone_ratio(x0, x1, x2, lo0, lo1, lo2, hi0, hi1, hi2, a0, a1, a2, cone_cos):
 def cone_cos_bound(x0, x1, x2, lo0, lo1, lo2, hi0, hi1, hi2, a0, a1, a2, cone_cos):
     """Upper bound of max(0, n . (x - y)/|x - y|) for every y in [lo, hi] and every unit n in the cone
     with axis a and cos(half-angle) ``cone_cos`` (<= -1: full sphere -> 1)."""
-    num, den = _cone_ratio(x0, x1, x2, lo0, lo1, lo2, hi0, hi1, hi2, a0, a1, a2, cone_cos)
+    num, den = _cone_ratio(x0, x1, x2, lo0, lo1, lo2, hi0, hi1, hi2, a0, a1, a2, cone_cos,
+                           frame_coefficient(a0, a1, a2))
     return min(1.0, num / den)
 
 
@@ -257,7 +273,7 @@ def material_bound_framed(x0, x1, x2, n0, n1, n2, r0, r1, r2, fr, rd0, rd1, rd2,
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
-def _geometric_ratio(x0, x1, x2, light_type, lo0, lo1, lo2, hi0, hi1, hi2, a0, a1, a2, cone_cos, clamp_d2):
+def _geometric_ratio(x0, x1, x2, light_type, lo0, lo1, lo2, hi0, hi1, hi2, a0, a1, a2, cone_cos, cone_fa, clamp_d2):
     """:func:`geometric_bound` as ``(num, den)``, G_ub = num / den with num >= 0 and den >= 0; den = 0
     (num = 1) when x is inside a positional cluster's box (the bound is infinite)."""
     if light_type == DIRECTIONAL:
@@ -266,7 +282,7 @@ def _geometric_ratio(x0, x1, x2, light_type, lo0, lo1, lo2, hi0, hi1, hi2, a0, a
     if d2 <= 0.0:
         return 1.0, 0.0
     if light_type == ORIENTED:
-        num, den = _cone_ratio(x0, x1, x2, lo0, lo1, lo2, hi0, hi1, hi2, a0, a1, a2, cone_cos)
+        num, den = _cone_ratio(x0, x1, x2, lo0, lo1, lo2, hi0, hi1, hi2, a0, a1, a2, cone_cos, cone_fa)
         return num, den * d2
     return 1.0, d2
 
@@ -279,7 +295,7 @@ def geometric_bound(x0, x1, x2, light_type, lo0, lo1, lo2, hi0, hi1, hi2, a0, a1
     clamping distance when every light of the cluster is indirect and clamping is on, else 0.
     """
     num, den = _geometric_ratio(x0, x1, x2, light_type, lo0, lo1, lo2, hi0, hi1, hi2, a0, a1, a2, cone_cos,
-                                clamp_d2)
+                                frame_coefficient(a0, a1, a2), clamp_d2)
     if den <= 0.0:
         return np.inf
     return num / den
@@ -297,13 +313,15 @@ def cluster_error_bound(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, 
     fr = receiver_frames(n0, n1, n2, r0, r1, r2)
     return cluster_error_bound_framed(x0, x1, x2, n0, n1, n2, r0, r1, r2, fr, rd0, rd1, rd2, rs0, rs1, rs2,
                                       exponent, light_type, lo0, lo1, lo2, hi0, hi1, hi2, a0, a1, a2, cone_cos,
-                                      i0, i1, i2, clamp_d2)
+                                      frame_coefficient(a0, a1, a2), i0, i1, i2, clamp_d2)
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
 def cluster_error_bound_framed(x0, x1, x2, n0, n1, n2, r0, r1, r2, fr, rd0, rd1, rd2, rs0, rs1, rs2, exponent,
-                               light_type, lo0, lo1, lo2, hi0, hi1, hi2, a0, a1, a2, cone_cos, i0, i1, i2, clamp_d2):
-    """:func:`cluster_error_bound` with the receiver's frames ``fr`` (:func:`receiver_frames`) given.
+                               light_type, lo0, lo1, lo2, hi0, hi1, hi2, a0, a1, a2, cone_cos, cone_fa, i0, i1, i2,
+                               clamp_d2):
+    """:func:`cluster_error_bound` with the receiver's frames ``fr`` (:func:`receiver_frames`) and the cone
+    axis's :func:`frame_coefficient` ``cone_fa`` given.
     The lightcut calls this once per cluster it considers.
 
     ``I f m / q * num / den``: the material and geometric bounds as ratios (:func:`_material_ratio`,
@@ -315,7 +333,7 @@ def cluster_error_bound_framed(x0, x1, x2, n0, n1, n2, r0, r1, r2, fr, rd0, rd1,
     if m <= 0.0:
         return 0.0, 0.0, 0.0
     num, den = _geometric_ratio(x0, x1, x2, light_type, lo0, lo1, lo2, hi0, hi1, hi2, a0, a1, a2, cone_cos,
-                                clamp_d2)
+                                cone_fa, clamp_d2)
     if den <= 0.0:  # x inside the box: infinite where the channel has intensity and reflectance
         return _scaled(i0 * f0, np.inf), _scaled(i1 * f1, np.inf), _scaled(i2 * f2, np.inf)
     s = m * num * BOUND_SLACK / (q * den)

@@ -102,7 +102,8 @@ from lightcuts.lights.lightset import LIGHT_TYPES, LUMINANCE, LightSet
 from lightcuts.parallel import on_threads
 from lightcuts.render import SLOT_BITS
 from lightcuts.rounding import down32, up32
-from lightcuts.render.bounds import DIRECTIONAL, OMNI, ORIENTED, cluster_error_bound_framed, receiver_frames
+from lightcuts.render.bounds import (DIRECTIONAL, OMNI, ORIENTED, cluster_error_bound_framed, frame_coefficient,
+                                     receiver_frames)
 from lightcuts.render.shading import light_geometry, material_term
 from lightcuts.trees.tree import LightTree
 
@@ -117,8 +118,12 @@ NK_LEFT, NK_RIGHT, NK_REP, NK_ALL_INDIRECT, NK_WIDTH = 0, 1, 2, 3, 4
 # Columns of a node's kernel record (node_b, (K, 16) float32, one 64-byte cache line; node_bi is the
 # same memory viewed as int32 for the integer columns): box lo (rounded down), hi (rounded up); cone
 # axis, cos (widened); summed RGB intensity; left child (-1 at a leaf; the right child is left + 1),
-# representative (global light id), flags = 2 * type code + all-indirect.
-NB_LO, NB_HI, NB_AXIS, NB_COS, NB_I, NB_LEFT, NB_REP, NB_FLAGS, NB_WIDTH = 0, 3, 6, 9, 10, 13, 14, 15, 16
+# representative and flags (global light id + (2 * type code + all-indirect) << REP_BITS), the cone
+# axis's frame coefficient (lightcuts.render.bounds.frame_coefficient of the float32 axis).
+NB_LO, NB_HI, NB_AXIS, NB_COS, NB_I, NB_LEFT, NB_REP, NB_FA, NB_WIDTH = 0, 3, 6, 9, 10, 13, 14, 15, 16
+#: Bits of a record's NB_REP column that hold the representative; the flags sit above them.
+REP_BITS = 28
+_REP_MASK = (1 << REP_BITS) - 1
 # Below this many rows build_forest's kernels run on one thread (thread start-up would cost more).
 _PARALLEL_MIN = 20000
 #: Extra half-angle (radians) given to a node's cone in node_b: covers the float32 rounding of its axis.
@@ -173,6 +178,8 @@ def pack_nodes(node_f: np.ndarray, node_k: np.ndarray) -> tuple[np.ndarray, np.n
     k = node_f.shape[0]
     if k >= 2 ** 31 - 1:
         raise LightcutsError(f"trees: {k} nodes exceed the kernel's int32 node ids")
+    if k and node_k[:, NK_REP].max() > _REP_MASK:
+        raise LightcutsError(f"trees: more than 2^{REP_BITS} lights do not fit the kernel's node records")
     node_b = cache_aligned_zeros((k, NB_WIDTH), np.float32)
     node_bi = node_b.view(np.int32)
     on_threads(_pack, k, _PARALLEL_MIN, np.ascontiguousarray(node_f, np.float64),
@@ -197,8 +204,11 @@ def _pack(node_f, node_k, node_b, node_bi, s, e):
         else:
             node_b[k, NB_COS] = down32(np.cos(beta))
         node_bi[k, NB_LEFT] = node_k[k, NK_LEFT]
-        node_bi[k, NB_REP] = node_k[k, NK_REP]
-        node_bi[k, NB_FLAGS] = 2 * np.int32(node_f[k, NF_TYPE]) + (node_k[k, NK_ALL_INDIRECT] > 0)
+        flags = 2 * np.int64(node_f[k, NF_TYPE]) + (node_k[k, NK_ALL_INDIRECT] > 0)
+        node_bi[k, NB_REP] = node_k[k, NK_REP] | (flags << REP_BITS)
+        node_b[k, NB_FA] = np.float32(frame_coefficient(np.float64(node_b[k, NB_AXIS]),
+                                                        np.float64(node_b[k, NB_AXIS + 1]),
+                                                        np.float64(node_b[k, NB_AXIS + 2])))
 
 
 def _level_order(tree: LightTree) -> list[np.ndarray]:
@@ -401,12 +411,12 @@ def light_mgv(j, light_f, x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0
 
 @njit(cache=True, error_model="numpy", forceinline=True)
 def _record_bound(x0, x1, x2, n0, n1, n2, r0, r1, r2, fr, rd0, rd1, rd2, rs0, rs1, rs2, exponent, clamp_d2, flags,
-                  lo0, lo1, lo2, hi0, hi1, hi2, a0, a1, a2, cone_cos, i0, i1, i2):
+                  lo0, lo1, lo2, hi0, hi1, hi2, a0, a1, a2, cone_cos, cone_fa, i0, i1, i2):
     """Error bound in luminance of an inner node from its record's values (``NB_*``, as float64)."""
     c2 = clamp_d2 if flags & 1 else 0.0
     b0, b1, b2 = cluster_error_bound_framed(x0, x1, x2, n0, n1, n2, r0, r1, r2, fr, rd0, rd1, rd2, rs0, rs1, rs2,
                                             exponent, np.int64(flags >> 1), lo0, lo1, lo2, hi0, hi1, hi2,
-                                            a0, a1, a2, cone_cos, i0, i1, i2, c2)
+                                            a0, a1, a2, cone_cos, cone_fa, i0, i1, i2, c2)
     return luminance(b0, b1, b2)
 
 
@@ -420,10 +430,11 @@ def node_bound(k, node_b, node_bi, x0, x1, x2, n0, n1, n2, r0, r1, r2, fr, rd0, 
     f = node_b
     # Explicit float64: float32 arguments would compile a second specialisation of the bound.
     return _record_bound(x0, x1, x2, n0, n1, n2, r0, r1, r2, fr, rd0, rd1, rd2, rs0, rs1, rs2, exponent, clamp_d2,
-                         node_bi[k, NB_FLAGS], np.float64(f[k, NB_LO]), np.float64(f[k, NB_LO + 1]),
+                         node_bi[k, NB_REP] >> REP_BITS, np.float64(f[k, NB_LO]), np.float64(f[k, NB_LO + 1]),
                          np.float64(f[k, NB_LO + 2]), np.float64(f[k, NB_HI]), np.float64(f[k, NB_HI + 1]),
                          np.float64(f[k, NB_HI + 2]), np.float64(f[k, NB_AXIS]), np.float64(f[k, NB_AXIS + 1]),
-                         np.float64(f[k, NB_AXIS + 2]), np.float64(f[k, NB_COS]), np.float64(f[k, NB_I]),
+                         np.float64(f[k, NB_AXIS + 2]), np.float64(f[k, NB_COS]), np.float64(f[k, NB_FA]),
+                         np.float64(f[k, NB_I]),
                          np.float64(f[k, NB_I + 1]), np.float64(f[k, NB_I + 2]))
 
 
@@ -543,7 +554,7 @@ def lightcut(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, e
     t2 = 0.0
     for t in range(roots.shape[0]):
         k = roots[t]
-        m0, m1, m2, ratio, nr = light_mgv(np.int64(node_bi[k, NB_REP]), light_f, x0, x1, x2, n0, n1, n2,
+        m0, m1, m2, ratio, nr = light_mgv(np.int64(node_bi[k, NB_REP] & _REP_MASK), light_f, x0, x1, x2, n0, n1, n2,
                                           r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, exponent, clamp_d2, ray_offset,
                                           visibility, occluded1, scene, buf)
         rays += nr
@@ -579,10 +590,10 @@ def lightcut(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, e
         # instead of a pop and a push).
         s = np.int64(heap[0] & _SLOT_MASK)
         k = slot_node[s]
-        prep = node_bi[k, NB_REP]
+        prep = node_bi[k, NB_REP] & _REP_MASK
         left = np.int64(node_bi[k, NB_LEFT])  # siblings are side by side (build_forest)
-        jl = np.int64(node_bi[left, NB_REP])
-        jr = np.int64(node_bi[left + 1, NB_REP])
+        jl = np.int64(node_bi[left, NB_REP] & _REP_MASK)
+        jr = np.int64(node_bi[left + 1, NB_REP] & _REP_MASK)
         if lanes + (jl != prep) + (jr != prep) > width:
             # Cast before s's estimate leaves t: a waiting ray of s may change that estimate.
             t0, t1, t2 = _flush(occluded_n, width, scene, pk, lanes, lane_slot, slot_node, slot_mgv, slot_ratio,
