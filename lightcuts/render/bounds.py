@@ -176,14 +176,16 @@ def max_cos_in_frame(z0, z1, z2, u0, u1, u2, v0, v1, v2, lo0, lo1, lo2, hi0, hi1
 
 @njit(cache=True, error_model="numpy", forceinline=True)
 def _cone_ratio(x0, x1, x2, lo0, lo1, lo2, hi0, hi1, hi2, a0, a1, a2, cone_cos, cone_fa):
-    """:func:`cone_cos_bound` as ``(num, den)``, bound = num / den with den > 0 and num >= 0 (not
-    clamped at 1): the caller folds den into the cluster bound's single division. cone_fa : the
-    axis's :func:`frame_coefficient` (a frame that is orthonormal up to float32 rounding of it is
-    covered by the records' widened cones, lightcuts.render.cut.CONE_WIDEN).
+    """:func:`cone_cos_bound` as ``(num, qq)``, bound = num / sqrt(qq) with qq > 0 and num >= 0 (not
+    clamped at 1): the caller folds the root into the cluster bound's single root and division.
+    cone_fa : the axis's :func:`frame_coefficient` (a frame that is orthonormal up to float32
+    rounding of it is covered by the records' widened cones, lightcuts.render.cut.CONE_WIDEN).
 
     With ``c_lo = m / q`` (``q = sqrt(t2 + m^2)``, :func:`_frame_cos` about the axis over the vectors
     x - y) and ``sin(theta_lo) = sqrt(t2) / q``, ``cos(theta_lo - beta) = (m cos(beta) + sqrt(t2)
-    sin(beta)) / q``; ``theta_lo <= beta`` (``m >= cos(beta) q``) gives 1.
+    sin(beta)) / q``; ``theta_lo <= beta`` (``m >= cos(beta) q``) gives 1. ``sqrt(t2) sin(beta)`` is
+    taken as one root, ``sqrt(t2 (1 - cos(beta)^2))``: square roots share the processor's divider
+    with divisions, and this bound is computed twice per refined node.
     """
     if cone_cos <= -1.0:
         return 1.0, 1.0
@@ -200,19 +202,17 @@ def _cone_ratio(x0, x1, x2, lo0, lo1, lo2, hi0, hi1, hi2, a0, a1, a2, cone_cos, 
     inside |= qq <= 0.0
     # Otherwise theta_lo > beta and q > 0; both angles are in [0, pi], so both sines are >= 0.
     # Both outcomes are computed and one selected: the test is not predictable.
-    s_beta = np.sqrt(max(0.0, 1.0 - cone_cos * cone_cos))
-    num = max(0.0, m * cone_cos + np.sqrt(tt) * s_beta)
-    q = np.sqrt(qq)
-    return (1.0 if inside else num), (1.0 if inside else q)
+    num = max(0.0, m * cone_cos + np.sqrt(tt * max(0.0, 1.0 - cone_cos * cone_cos)))
+    return (1.0 if inside else num), (1.0 if inside else qq)
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
 def cone_cos_bound(x0, x1, x2, lo0, lo1, lo2, hi0, hi1, hi2, a0, a1, a2, cone_cos):
     """Upper bound of max(0, n . (x - y)/|x - y|) for every y in [lo, hi] and every unit n in the cone
     with axis a and cos(half-angle) ``cone_cos`` (<= -1: full sphere -> 1)."""
-    num, den = _cone_ratio(x0, x1, x2, lo0, lo1, lo2, hi0, hi1, hi2, a0, a1, a2, cone_cos,
-                           frame_coefficient(a0, a1, a2))
-    return min(1.0, num / den)
+    num, qq = _cone_ratio(x0, x1, x2, lo0, lo1, lo2, hi0, hi1, hi2, a0, a1, a2, cone_cos,
+                          frame_coefficient(a0, a1, a2))
+    return min(1.0, num / np.sqrt(qq))
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
@@ -242,8 +242,9 @@ def receiver_frames(n0, n1, n2, r0, r1, r2):
 @njit(cache=True, error_model="numpy", forceinline=True)
 def _material_ratio(x0, x1, x2, n0, n1, n2, r0, r1, r2, fr, rd0, rd1, rd2, rs0, rs1, rs2, exponent,
                     lo0, lo1, lo2, hi0, hi1, hi2, directional):
-    """The material bound as ``(f_r, f_g, f_b, m, q)``: ``M_ub = f * m / q`` per channel (``f_ub`` and
-    ``cos_ub(N) = m / q``, not clamped at 1), with the receiver's frames ``fr`` (:func:`receiver_frames`).
+    """The material bound as ``(f_r, f_g, f_b, m, qq)``: ``M_ub = f * m / sqrt(qq)`` per channel (``f_ub``
+    and ``cos_ub(N) = m / sqrt(qq)``, not clamped at 1), with the receiver's frames ``fr``
+    (:func:`receiver_frames`).
     ``m <= 0`` (the rest meaningless) when every wi is at or below the horizon."""
     if not directional:
         lo0, lo1, lo2 = lo0 - x0, lo1 - x1, lo2 - x2
@@ -257,34 +258,34 @@ def _material_ratio(x0, x1, x2, n0, n1, n2, r0, r1, r2, fr, rd0, rd1, rd2, rs0, 
         cos_r = max(0.0, max_cos_in_frame(r0, r1, r2, fr[6], fr[7], fr[8], fr[9], fr[10], fr[11],
                                           lo0, lo1, lo2, hi0, hi1, hi2))
         lobe = (exponent + 2.0) / (2.0 * np.pi) * cos_r ** exponent
-    return rd0 / np.pi + rs0 * lobe, rd1 / np.pi + rs1 * lobe, rd2 / np.pi + rs2 * lobe, m, np.sqrt(t2 + m * m)
+    return rd0 / np.pi + rs0 * lobe, rd1 / np.pi + rs1 * lobe, rd2 / np.pi + rs2 * lobe, m, t2 + m * m
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
 def material_bound_framed(x0, x1, x2, n0, n1, n2, r0, r1, r2, fr, rd0, rd1, rd2, rs0, rs1, rs2, exponent,
                           lo0, lo1, lo2, hi0, hi1, hi2, directional):
     """:func:`material_bound` with the receiver's frames ``fr`` (:func:`receiver_frames`) given."""
-    f0, f1, f2, m, q = _material_ratio(x0, x1, x2, n0, n1, n2, r0, r1, r2, fr, rd0, rd1, rd2, rs0, rs1, rs2,
-                                       exponent, lo0, lo1, lo2, hi0, hi1, hi2, directional)
+    f0, f1, f2, m, qq = _material_ratio(x0, x1, x2, n0, n1, n2, r0, r1, r2, fr, rd0, rd1, rd2, rs0, rs1, rs2,
+                                        exponent, lo0, lo1, lo2, hi0, hi1, hi2, directional)
     if m <= 0.0:
         return 0.0, 0.0, 0.0
-    cos_n = min(1.0, m / q)
+    cos_n = min(1.0, m / np.sqrt(qq))
     return f0 * cos_n, f1 * cos_n, f2 * cos_n
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
 def _geometric_ratio(x0, x1, x2, light_type, lo0, lo1, lo2, hi0, hi1, hi2, a0, a1, a2, cone_cos, cone_fa, clamp_d2):
-    """:func:`geometric_bound` as ``(num, den)``, G_ub = num / den with num >= 0 and den >= 0; den = 0
-    (num = 1) when x is inside a positional cluster's box (the bound is infinite)."""
+    """:func:`geometric_bound` as ``(num, qq, d2)``, G_ub = num / (sqrt(qq) d2) with num >= 0, qq > 0 and
+    d2 >= 0; d2 = 0 when x is inside a positional cluster's box (the bound is infinite)."""
     if light_type == DIRECTIONAL:
-        return 1.0, 1.0
+        return 1.0, 1.0, 1.0
     d2 = max(box_distance2(x0, x1, x2, lo0, lo1, lo2, hi0, hi1, hi2), clamp_d2)
     if d2 <= 0.0:
-        return 1.0, 0.0
+        return 1.0, 1.0, 0.0
     if light_type == ORIENTED:
-        num, den = _cone_ratio(x0, x1, x2, lo0, lo1, lo2, hi0, hi1, hi2, a0, a1, a2, cone_cos, cone_fa)
-        return num, den * d2
-    return 1.0, d2
+        num, qq = _cone_ratio(x0, x1, x2, lo0, lo1, lo2, hi0, hi1, hi2, a0, a1, a2, cone_cos, cone_fa)
+        return num, qq, d2
+    return 1.0, 1.0, d2
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
@@ -294,11 +295,11 @@ def geometric_bound(x0, x1, x2, light_type, lo0, lo1, lo2, hi0, hi1, hi2, a0, a1
     light_type : OMNI, ORIENTED or DIRECTIONAL; a, cone_cos : the normal cone; clamp_d2 : squared
     clamping distance when every light of the cluster is indirect and clamping is on, else 0.
     """
-    num, den = _geometric_ratio(x0, x1, x2, light_type, lo0, lo1, lo2, hi0, hi1, hi2, a0, a1, a2, cone_cos,
-                                frame_coefficient(a0, a1, a2), clamp_d2)
-    if den <= 0.0:
+    num, qq, d2 = _geometric_ratio(x0, x1, x2, light_type, lo0, lo1, lo2, hi0, hi1, hi2, a0, a1, a2, cone_cos,
+                                   frame_coefficient(a0, a1, a2), clamp_d2)
+    if d2 <= 0.0:
         return np.inf
-    return num / den
+    return num / (np.sqrt(qq) * d2)
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
@@ -324,19 +325,21 @@ def cluster_error_bound_framed(x0, x1, x2, n0, n1, n2, r0, r1, r2, fr, rd0, rd1,
     axis's :func:`frame_coefficient` ``cone_fa`` given.
     The lightcut calls this once per cluster it considers.
 
-    ``I f m / q * num / den``: the material and geometric bounds as ratios (:func:`_material_ratio`,
-    :func:`_geometric_ratio`), so that one division, and square roots independent of each other,
-    remain on the path from the box to the bound (they were a chain of four divisions and roots).
+    ``I f m / sqrt(qm) * num / (sqrt(qg) d2)``: the material and geometric bounds as ratios
+    (:func:`_material_ratio`, :func:`_geometric_ratio`), so that one division and one square root,
+    ``sqrt(qm qg)``, remain on the path from the box to the bound (they were a chain of four divisions
+    and roots). qm and qg are squared lengths of float32-bounded boxes, so their product stays far
+    from overflow.
     """
-    f0, f1, f2, m, q = _material_ratio(x0, x1, x2, n0, n1, n2, r0, r1, r2, fr, rd0, rd1, rd2, rs0, rs1, rs2,
-                                       exponent, lo0, lo1, lo2, hi0, hi1, hi2, light_type == DIRECTIONAL)
+    f0, f1, f2, m, qm = _material_ratio(x0, x1, x2, n0, n1, n2, r0, r1, r2, fr, rd0, rd1, rd2, rs0, rs1, rs2,
+                                        exponent, lo0, lo1, lo2, hi0, hi1, hi2, light_type == DIRECTIONAL)
     if m <= 0.0:
         return 0.0, 0.0, 0.0
-    num, den = _geometric_ratio(x0, x1, x2, light_type, lo0, lo1, lo2, hi0, hi1, hi2, a0, a1, a2, cone_cos,
-                                cone_fa, clamp_d2)
-    if den <= 0.0:  # x inside the box: infinite where the channel has intensity and reflectance
+    num, qg, d2 = _geometric_ratio(x0, x1, x2, light_type, lo0, lo1, lo2, hi0, hi1, hi2, a0, a1, a2, cone_cos,
+                                   cone_fa, clamp_d2)
+    if d2 <= 0.0:  # x inside the box: infinite where the channel has intensity and reflectance
         return _scaled(i0 * f0, np.inf), _scaled(i1 * f1, np.inf), _scaled(i2 * f2, np.inf)
-    s = m * num * BOUND_SLACK / (q * den)
+    s = m * num * BOUND_SLACK / (np.sqrt(qm * qg) * d2)
     return i0 * f0 * s, i1 * f1 * s, i2 * f2 * s
 
 
