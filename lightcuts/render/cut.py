@@ -364,7 +364,7 @@ def _light_mg(typ, p0, p1, p2, nl0, nl1, nl2, c2, x0, x1, x2, n0, n1, n2, r0, r1
     ray when tfar <= 0). Scalars only: a function taking arrays that LLVM does not inline costs a
     reference-count update per array and call.
     """
-    w0, w1, w2, _, g, g_unclamped = light_geometry(typ, p0, p1, p2, nl0, nl1, nl2, x0, x1, x2, c2)
+    w0, w1, w2, _, g, ratio = light_geometry(typ, p0, p1, p2, nl0, nl1, nl2, x0, x1, x2, c2)
     if g <= 0.0:
         return 0.0, 0.0, 0.0, 1.0, False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     m0, m1, m2 = material_term(n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, exponent, w0, w1, w2)
@@ -378,8 +378,9 @@ def _light_mg(typ, p0, p1, p2, nl0, nl1, nl2, c2, x0, x1, x2, n0, n1, n2, r0, r1
         # Lights sit on surfaces: stop short of the light so its own surface does not shadow it.
         d0, d1, d2 = p0 - o0, p1 - o1, p2 - o2
         dist = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-        d0, d1, d2, tfar = d0 / dist, d1 / dist, d2 / dist, dist - ray_offset
-    return m0 * g, m1 * g, m2 * g, g_unclamped / g, True, o0, o1, o2, d0, d1, d2, tfar
+        inv = 1.0 / dist
+        d0, d1, d2, tfar = d0 * inv, d1 * inv, d2 * inv, dist - ray_offset
+    return m0 * g, m1 * g, m2 * g, ratio, True, o0, o1, o2, d0, d1, d2, tfar
 
 
 @njit(cache=True, error_model="numpy")

@@ -73,21 +73,26 @@ def light_geometry(light_type, p0, p1, p2, nl0, nl1, nl2, x0, x1, x2, clamp_d2):
 
     light_type : OMNI, ORIENTED or DIRECTIONAL; p, nl : the light's position (directional: unit
     direction towards it) and normal; clamp_d2 : squared clamping distance (0: not clamped).
-    Returns (w0, w1, w2, dist, G, G_unclamped): unit wi towards the light, distance (inf for
-    directional lights), G with the clamp and G without it.
+    Returns (w0, w1, w2, dist, G, ratio): unit wi towards the light, distance (inf for directional
+    lights), G with the clamp, and G without the clamp over G with it (>= 1).
+
+    One division for the direction (a reciprocal): divisions and square roots share the processor's
+    divider, and the lightcut evaluates this for every new representative.
     """
     if light_type == DIRECTIONAL:
         return p0, p1, p2, np.inf, 1.0, 1.0
     v0, v1, v2 = p0 - x0, p1 - x1, p2 - x2
     d2 = v0 * v0 + v1 * v1 + v2 * v2
     if d2 <= 0.0:
-        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 1.0
     d = np.sqrt(d2)
-    w0, w1, w2 = v0 / d, v1 / d, v2 / d
+    inv = 1.0 / d
+    w0, w1, w2 = v0 * inv, v1 * inv, v2 * inv
     cos_l = 1.0
     if light_type == ORIENTED:
         cos_l = max(0.0, -(nl0 * w0 + nl1 * w1 + nl2 * w2))
-    return w0, w1, w2, d, cos_l / max(d2, clamp_d2), cos_l / d2
+    dc2 = max(d2, clamp_d2)
+    return w0, w1, w2, d, cos_l / dc2, dc2 / d2
 
 
 @njit(cache=True, error_model="numpy")
