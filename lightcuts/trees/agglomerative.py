@@ -75,7 +75,7 @@ from lightcuts.errors import LightcutsError
 from lightcuts.parallel import on_counter, on_threads
 from lightcuts.trees.kdtree import (KD_SUBTREES, LEAF_SIZE, kd_best_match, kd_build, kd_build_threaded,
                                     kd_group_by_leaf, kd_merge, kd_merge_batch, kd_merge_batch_finish, kd_new,
-                                    kd_search_range, kd_subtree, kd_wants_rebuild)
+                                    kd_search_range, kd_subtree_starts, kd_wants_rebuild)
 from lightcuts.trees.metrics import Metric
 from lightcuts.trees.registry import BUILDERS
 
@@ -195,6 +195,8 @@ def _pair_round(kd, todo, n_todo, todo_next, best, best_d, head, nxt, left, righ
     k = left.shape[0]
     new = counters[C_NEXT]
     n_pairs = 0
+    slot_of = kd[2]
+    starts = kd_subtree_starts(kd)
     counters[C_SEARCHES] += n_todo
     counters[C_ROUNDS] += 1
     for i in range(n_todo):
@@ -215,8 +217,15 @@ def _pair_round(kd, todo, n_todo, todo_next, best, best_d, head, nxt, left, righ
             if b >= 0 and best[b] >= 0 and best_d[a] <= best_d[b]:
                 left[new] = a
                 right[new] = b
-                sa = kd_subtree(kd, a)
-                pair_sub[n_pairs] = sa if sa == kd_subtree(kd, b) else -1
+                # The kd subtree of each (kd_subtree_starts), -1 if they differ or there are none.
+                sa = np.int64(slot_of[a])
+                sb = np.int64(slot_of[b])
+                ja = 0
+                jb = 0
+                for t in range(1, KD_SUBTREES):
+                    ja += sa >= starts[t]
+                    jb += sb >= starts[t]
+                pair_sub[n_pairs] = ja if ja == jb and starts[0] >= 0 else -1
                 n_pairs += 1
                 best[a] = -3
                 best[b] = -3

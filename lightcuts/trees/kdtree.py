@@ -883,47 +883,57 @@ def kd_search_range(kd, todo, n_todo, best, best_d, metric_id, has_cone, use_con
 
 
 @njit(cache=True, nogil=True)
-def _merge_rows(kd, a, b, new_id, top):
-    """:func:`kd_merge`'s slot work, and the active counts on the path from the emptied slot's leaf
-    up to node ``top`` (0: the root; a first node of a level: to that level)."""
+def _merge_rows(kd, left, right, first, n_pairs, new0, pair_sub, s, e, top):
+    """:func:`kd_merge`'s slot work for the pairs ``left[first + p], right[first + p] -> new0 + p`` with
+    ``s <= pair_sub[p] < e``, in order, and the active counts on the path from each emptied slot's
+    leaf up to node ``top`` (0: the root; a first node of a level: to that level). One call for a
+    whole batch: a call taking the kd tuple costs a reference-count update per array, atomic
+    operations that the two threads of a batch would contend for."""
     slot_f, slot_id, slot_of, slot_leaf, node_s, node_n, node_cnt, leaf_start, info = kd[:9]
-    sa = slot_of[a]
-    sb = slot_of[b]
-    da = 0.0
-    db = 0.0
-    for t in range(3):
-        ca = 0.5 * (slot_f[sa, S_LO + t] + slot_f[sa, S_HI + t])
-        cb = 0.5 * (slot_f[sb, S_LO + t] + slot_f[sb, S_HI + t])
-        cc = 0.5 * (min(slot_f[sa, S_LO + t], slot_f[sb, S_LO + t]) + max(slot_f[sa, S_HI + t], slot_f[sb, S_HI + t]))
-        da += (ca - cc) ** 2
-        db += (cb - cc) ** 2
-    keep, drop = (sa, sb) if da <= db else (sb, sa)
-    for t in range(3):
-        slot_f[keep, S_LO + t] = min(slot_f[sa, S_LO + t], slot_f[sb, S_LO + t])
-        slot_f[keep, S_HI + t] = max(slot_f[sa, S_HI + t], slot_f[sb, S_HI + t])
-        slot_f[keep, S_NLO + t] = min(slot_f[sa, S_NLO + t], slot_f[sb, S_NLO + t])
-        slot_f[keep, S_NHI + t] = max(slot_f[sa, S_NHI + t], slot_f[sb, S_NHI + t])
-    slot_f[keep, S_I] = slot_f[sa, S_I] + slot_f[sb, S_I]
-    slot_id[keep] = new_id
-    slot_of[a] = -1
-    slot_of[b] = -1
-    slot_of[new_id] = keep
-    # Keep the leaf's active slots in front: its last active row fills the emptied slot, so a
-    # search scans active slots only.
-    leaf = slot_leaf[drop]
-    last = leaf_start[leaf - info[I_FIRST_LEAF]] + node_cnt[leaf] - 1
-    if last != drop:
-        for t in range(SLOT_DATA):
-            slot_f[drop, t] = slot_f[last, t]
-        slot_id[drop] = slot_id[last]
-        slot_of[slot_id[drop]] = drop
-    slot_id[last] = -1
-    k = leaf
-    while k >= top:
-        node_cnt[k] -= 1
-        if k == 0:
-            break
-        k = (k - 1) >> 1
+    for p in range(n_pairs):
+        if not s <= pair_sub[p] < e:
+            continue
+        a = left[first + p]
+        b = right[first + p]
+        new_id = new0 + p
+        sa = slot_of[a]
+        sb = slot_of[b]
+        da = 0.0
+        db = 0.0
+        for t in range(3):
+            ca = 0.5 * (slot_f[sa, S_LO + t] + slot_f[sa, S_HI + t])
+            cb = 0.5 * (slot_f[sb, S_LO + t] + slot_f[sb, S_HI + t])
+            cc = 0.5 * (min(slot_f[sa, S_LO + t], slot_f[sb, S_LO + t])
+                        + max(slot_f[sa, S_HI + t], slot_f[sb, S_HI + t]))
+            da += (ca - cc) ** 2
+            db += (cb - cc) ** 2
+        keep, drop = (sa, sb) if da <= db else (sb, sa)
+        for t in range(3):
+            slot_f[keep, S_LO + t] = min(slot_f[sa, S_LO + t], slot_f[sb, S_LO + t])
+            slot_f[keep, S_HI + t] = max(slot_f[sa, S_HI + t], slot_f[sb, S_HI + t])
+            slot_f[keep, S_NLO + t] = min(slot_f[sa, S_NLO + t], slot_f[sb, S_NLO + t])
+            slot_f[keep, S_NHI + t] = max(slot_f[sa, S_NHI + t], slot_f[sb, S_NHI + t])
+        slot_f[keep, S_I] = slot_f[sa, S_I] + slot_f[sb, S_I]
+        slot_id[keep] = new_id
+        slot_of[a] = -1
+        slot_of[b] = -1
+        slot_of[new_id] = keep
+        # Keep the leaf's active slots in front: its last active row fills the emptied slot, so a
+        # search scans active slots only.
+        leaf = slot_leaf[drop]
+        last = leaf_start[leaf - info[I_FIRST_LEAF]] + node_cnt[leaf] - 1
+        if last != drop:
+            for t in range(SLOT_DATA):
+                slot_f[drop, t] = slot_f[last, t]
+            slot_id[drop] = slot_id[last]
+            slot_of[slot_id[drop]] = drop
+        slot_id[last] = -1
+        k = leaf
+        while k >= top:
+            node_cnt[k] -= 1
+            if k == 0:
+                break
+            k = (k - 1) >> 1
 
 
 @njit(cache=True)
@@ -933,7 +943,8 @@ def kd_merge(kd, work, a, b, new_id, rebuild):
     rebuild : rebuild the tree here when the active clusters have halved since the last build
     (False: the caller does, see :func:`kd_wants_rebuild`).
     """
-    _merge_rows(kd, a, b, new_id, 0)
+    # The batch kernel with one pair (the same specialisation: int32 arrays).
+    _merge_rows(kd, np.full(1, a, np.int32), np.full(1, b, np.int32), 0, 1, new_id, np.zeros(1, np.int32), 0, 1, 0)
     kd[8][I_ACTIVE] -= 1
     if rebuild and kd_wants_rebuild(kd):
         kd_build(kd, work)
@@ -947,20 +958,27 @@ KD_SUBTREES = 1 << _TOP_LEVELS
 
 
 @njit(cache=True)
-def kd_subtree(kd, a):
-    """The subtree (0 .. KD_SUBTREES - 1) below the top levels that holds active cluster a, or -1 if
-    the tree has no level below them. (A subtree's leaves, hence its slots, are contiguous.)"""
+def kd_subtree_starts(kd):
+    """(KD_SUBTREES,) int64: the first slot of each subtree below the top levels (a subtree's leaves,
+    hence its slots, are contiguous), or all -1 if the tree has no level below them. The subtree of
+    active cluster a is then the number of t >= 1 with ``slot_of[a] >= starts[t]`` (-1 without
+    levels): the caller counts it inline, since a call taking the kd tuple costs a reference-count
+    update per array (24 atomic operations), several times the count itself."""
+    starts = np.full(KD_SUBTREES, -1, np.int64)
     first_leaf = kd[8][I_FIRST_LEAF]
-    if first_leaf < _BATCH_TOP:
-        return -1
-    step = (first_leaf + 1) // KD_SUBTREES
-    s = kd[2][a]
-    leaf_start = kd[7]
-    j = 0
-    for t in range(1, KD_SUBTREES):
-        if s >= leaf_start[t * step]:
-            j += 1
-    return j
+    if first_leaf >= _BATCH_TOP:
+        step = (first_leaf + 1) // KD_SUBTREES
+        for t in range(KD_SUBTREES):
+            starts[t] = kd[7][t * step]
+    return starts
+
+
+def kd_subtree(kd, a) -> int:
+    """The subtree (0 .. KD_SUBTREES - 1) below the top levels that holds active cluster a, or -1 if
+    the tree has no level below them: from Python (kernels count it inline, see
+    :func:`kd_subtree_starts`)."""
+    starts = kd_subtree_starts(kd)
+    return -1 if starts[0] < 0 else int(np.count_nonzero(kd[2][a] >= starts[1:]))
 
 
 @njit(cache=True, nogil=True)
@@ -968,9 +986,7 @@ def kd_merge_batch(kd, left, right, new0, n_pairs, pair_sub, s, e):
     """Merges ``left[new0 + p], right[new0 + p] -> new0 + p`` of the batch's pairs p with
     ``pair_sub[p]`` in [s, e) (their subtree, :func:`kd_subtree`), in batch order; the counts of the
     top levels and ``info`` wait for :func:`kd_merge_batch_finish`."""
-    for p in range(n_pairs):
-        if s <= pair_sub[p] < e:
-            _merge_rows(kd, left[new0 + p], right[new0 + p], new0 + p, _BATCH_TOP)
+    _merge_rows(kd, left, right, new0, n_pairs, new0, pair_sub, s, e, _BATCH_TOP)
 
 
 @njit(cache=True)
@@ -979,9 +995,7 @@ def kd_merge_batch_finish(kd, left, right, new0, n_pairs, pair_sub):
     order, then the counts of the top levels and ``info``."""
     node_cnt = kd[6]
     top = _BATCH_TOP if kd[8][I_FIRST_LEAF] >= _BATCH_TOP else 0
-    for p in range(n_pairs):
-        if pair_sub[p] < 0:
-            _merge_rows(kd, left[new0 + p], right[new0 + p], new0 + p, top)
+    _merge_rows(kd, left, right, new0, n_pairs, new0, pair_sub, -1, 0, top)
     if top > 0:
         for k in range(top - 1, -1, -1):
             node_cnt[k] = node_cnt[2 * k + 1] + node_cnt[2 * k + 2]
