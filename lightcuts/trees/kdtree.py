@@ -82,7 +82,7 @@ leaves, not because of their form (the box-of-ends form above opens 4% fewer nod
 centres). Leaves of 32 clusters, scanned in two passes (the metric without its cone term for the
 whole leaf, then the survivors), cost less than deeper trees of smaller leaves. The clusters of
 one leaf search much the same neighbourhood, so :func:`kd_search_range` searches them together
-(:func:`kd_best_match_group`): one traversal for the group, whose node bounds hold for all its
+(:func:`kd_search_groups`): one traversal for the group, whose node bounds hold for all its
 members at once, and for each leaf it reaches, one cheap bound per member (vectorised over the
 members) before that member scans it. With the locally-ordered builder's rounds (13 clusters per
 group on average) that is 4.5 node bounds, 12 member bounds and 3.1 leaf scans per search, and 40%
@@ -486,7 +486,7 @@ def kd_best_match(kd, a, metric_id, has_cone, use_cone, c):
     The loop calls only scalar helpers: in numba an array passed to a helper costs two atomic
     reference-count updates per call, which was 40% of the search time.
 
-    :func:`kd_best_match_group` with one member finds the same, along the same traversal; it is not
+    :func:`kd_search_groups` with a group of one finds the same, along the same traversal; it is not
     used for this because its per-group set-up (member rows, leaf columns, scratch passed per call)
     made the heap builder, which searches one cluster at a time, 20-35% slower.
     """
@@ -613,11 +613,14 @@ def _group_extent(gemin, ghmin, glmax, hmin, lmax, emin):
 
 
 @njit(cache=True, nogil=True)
-def kd_best_match_group(kd, todo, g0, g1, metric_id, has_cone, use_cone, c, gq, gb, gd, mb, lt):
-    """findBestMatch for each cluster of ``todo[g0:g1]``, clusters of one kd leaf, in one traversal.
+def kd_search_groups(kd, todo, n_todo, first, last, out_best, out_best_d, metric_id, has_cone, use_cone, c, gq, gb, gd, mb, lt):
+    """findBestMatch for the clusters of the groups that start in ``todo[first:last]`` (a group: a run of
+    ``todo[:n_todo]`` in one kd leaf, at most a leaf size long), each group in one traversal.
 
-    Writes ``gb[i], gd[i]`` = :func:`kd_best_match` of ``todo[g0 + i]`` (the same minimum d; among
-    tied clusters the one found may differ). Scratch, with ``kd`` a thread's own
+    Writes ``out_best[a], out_best_d[a]`` = :func:`kd_best_match` of each such cluster a (the same minimum d;
+    among tied clusters the one found may differ). Groups depend on ``todo`` only, not on first and last.
+    One call for many groups: a call taking the kd tuple costs a reference-count update per array,
+    atomic operations that the threads of a round would contend for. Scratch, with ``kd`` a thread's own
     (:func:`kd_scratch`): gq (SLOT_WIDTH, >= g1 - g0) float64, the members' rows as columns; gb, gd,
     mb (>= g1 - g0,) int64, float64, float64; lt (S_I + 1, leaf size) float64, a leaf's boxes and
     intensities as columns.
@@ -632,188 +635,195 @@ def kd_best_match_group(kd, todo, g0, g1, metric_id, has_cone, use_cone, c, gq, 
     """
     slot_f, slot_id, slot_of, slot_leaf, node_s, node_n, node_cnt, leaf_start, info, stack_node, stack_lb, dbuf = kd
     first_leaf = info[I_FIRST_LEAF]
-    g = g1 - g0
-    gh0 = gh1 = gh2 = np.inf
-    gl0 = gl1 = gl2 = -np.inf
-    ge0 = ge1 = ge2 = np.inf
-    gnh0 = gnh1 = gnh2 = np.inf
-    gnl0 = gnl1 = gnl2 = -np.inf
-    gne0 = gne1 = gne2 = np.inf
-    gi = np.inf
-    gc0 = gc1 = gc2 = 0.0
-    for i in range(g):
-        s = slot_of[todo[g0 + i]]
-        for t in range(SLOT_DATA):
-            gq[t, i] = slot_f[s, t]
-        gb[i] = -1
-        gd[i] = np.inf
-        gl0 = max(gl0, gq[S_LO, i])
-        gl1 = max(gl1, gq[S_LO + 1, i])
-        gl2 = max(gl2, gq[S_LO + 2, i])
-        gh0 = min(gh0, gq[S_HI, i])
-        gh1 = min(gh1, gq[S_HI + 1, i])
-        gh2 = min(gh2, gq[S_HI + 2, i])
-        ge0 = min(ge0, gq[S_HI, i] - gq[S_LO, i])
-        ge1 = min(ge1, gq[S_HI + 1, i] - gq[S_LO + 1, i])
-        ge2 = min(ge2, gq[S_HI + 2, i] - gq[S_LO + 2, i])
-        gnl0 = max(gnl0, gq[S_NLO, i])
-        gnl1 = max(gnl1, gq[S_NLO + 1, i])
-        gnl2 = max(gnl2, gq[S_NLO + 2, i])
-        gnh0 = min(gnh0, gq[S_NHI, i])
-        gnh1 = min(gnh1, gq[S_NHI + 1, i])
-        gnh2 = min(gnh2, gq[S_NHI + 2, i])
-        gne0 = min(gne0, gq[S_NHI, i] - gq[S_NLO, i])
-        gne1 = min(gne1, gq[S_NHI + 1, i] - gq[S_NLO + 1, i])
-        gne2 = min(gne2, gq[S_NHI + 2, i] - gq[S_NLO + 2, i])
-        gi = min(gi, gq[S_I, i])
-        gc0 += gq[S_LO, i] + gq[S_HI, i]
-        gc1 += gq[S_LO + 1, i] + gq[S_HI + 1, i]
-        gc2 += gq[S_LO + 2, i] + gq[S_HI + 2, i]
-    gc0 /= 2 * g
-    gc1 /= 2 * g
-    gc2 /= 2 * g
-    home = slot_leaf[slot_of[todo[g0]]]
-    thr = np.inf
-    # As kd_best_match: the home leaf, then the sibling subtrees on the climb to the root.
-    up = home
-    stack_node[0] = up
-    stack_lb[0] = 0.0
-    sp = 1
-    while True:
-        while sp > 0:
-            sp -= 1
-            k = stack_node[sp]
-            lb = stack_lb[sp]
-            if lb < 0.0:
-                u0 = _group_extent(ge0, gh0, gl0, node_s[k, N_HMIN], node_s[k, N_LMAX], node_s[k, N_EMIN])
-                u1 = _group_extent(ge1, gh1, gl1, node_s[k, N_HMIN + 1], node_s[k, N_LMAX + 1], node_s[k, N_EMIN + 1])
-                u2 = _group_extent(ge2, gh2, gl2, node_s[k, N_HMIN + 2], node_s[k, N_LMAX + 2], node_s[k, N_EMIN + 2])
-                intensity = gi + np.float64(node_s[k, N_IMIN])
-                lb = metric_eval(metric_id, intensity, 0.0, 0.0, 0.0, u0, u1, u2, 1.0, has_cone, c)
-                if use_cone and lb < thr:
-                    spread = max(
-                        _group_extent(gne0, gnh0, gnl0, node_n[k, NH_MIN], node_n[k, NL_MAX], node_n[k, NE_MIN]),
-                        _group_extent(gne1, gnh1, gnl1, node_n[k, NH_MIN + 1], node_n[k, NL_MAX + 1],
-                                      node_n[k, NE_MIN + 1]),
-                        _group_extent(gne2, gnh2, gnl2, node_n[k, NH_MIN + 2], node_n[k, NL_MAX + 2],
-                                      node_n[k, NE_MIN + 2]))
-                    lb = metric_eval(metric_id, intensity, 0.0, 0.0, 0.0, u0, u1, u2, _cone_cos_bound(spread),
-                                     has_cone, c)
-            if lb >= thr:
-                continue
-            if k < first_leaf:
-                l = 2 * k + 1
-                r = l + 1
-                axis = int(node_s[k, N_AXIS])
-                qc = gc0 if axis == 0 else (gc1 if axis == 1 else gc2)
-                if qc >= node_s[k, N_SPLIT]:
-                    l, r = r, l
-                if node_cnt[r] > 0:
-                    stack_node[sp] = r
-                    stack_lb[sp] = -1.0
-                    sp += 1
-                if node_cnt[l] > 0:
-                    stack_node[sp] = l
-                    stack_lb[sp] = -1.0
-                    sp += 1
-                continue
-            s0 = leaf_start[k - first_leaf]
-            cnt = node_cnt[k]
-            # Each member's own bound for the leaf first, all at once (no branches: the loop vectorises).
-            if k != home:
-                h0 = np.float64(node_s[k, N_HMIN])
-                h1 = np.float64(node_s[k, N_HMIN + 1])
-                h2 = np.float64(node_s[k, N_HMIN + 2])
-                l0 = np.float64(node_s[k, N_LMAX])
-                l1 = np.float64(node_s[k, N_LMAX + 1])
-                l2 = np.float64(node_s[k, N_LMAX + 2])
-                e0 = np.float64(node_s[k, N_EMIN])
-                e1 = np.float64(node_s[k, N_EMIN + 1])
-                e2 = np.float64(node_s[k, N_EMIN + 2])
-                imin = np.float64(node_s[k, N_IMIN])
-                for m in range(g):
-                    mb[m] = metric_eval(metric_id, gq[S_I, m] + imin, 0.0, 0.0, 0.0,
-                                        _union_extent(gq[S_LO, m], gq[S_HI, m], h0, l0, e0),
-                                        _union_extent(gq[S_LO + 1, m], gq[S_HI + 1, m], h1, l1, e1),
-                                        _union_extent(gq[S_LO + 2, m], gq[S_HI + 2, m], h2, l2, e2), 1.0, has_cone, c)
-            # The leaf's boxes and intensities as columns (once per leaf, for all its scans): a
-            # scan's first pass then reads consecutive values and vectorises.
-            transposed = False
-            for m in range(g):
-                best_d = gd[m]
-                if k != home and mb[m] >= best_d:
+    cap = info[I_LEAFSIZE]
+    # The first group that starts at or after first: groups are cut from the start of each run.
+    g0 = first
+    while g0 > 0 and slot_leaf[slot_of[todo[g0 - 1]]] == slot_leaf[slot_of[todo[first]]]:
+        g0 -= 1
+    while g0 < last:
+        # The group todo[g0:g1]: the run of clusters in g0's kd leaf, at most cap long.
+        run_leaf = slot_leaf[slot_of[todo[g0]]]
+        g1 = g0 + 1
+        while g1 < n_todo and g1 - g0 < cap and slot_leaf[slot_of[todo[g1]]] == run_leaf:
+            g1 += 1
+        if g0 < first:  # a group that starts before first: the caller whose range holds its start does it
+            g0 = g1
+            continue
+        g = g1 - g0
+        gh0 = gh1 = gh2 = np.inf
+        gl0 = gl1 = gl2 = -np.inf
+        ge0 = ge1 = ge2 = np.inf
+        gnh0 = gnh1 = gnh2 = np.inf
+        gnl0 = gnl1 = gnl2 = -np.inf
+        gne0 = gne1 = gne2 = np.inf
+        gi = np.inf
+        gc0 = gc1 = gc2 = 0.0
+        for i in range(g):
+            s = slot_of[todo[g0 + i]]
+            for t in range(SLOT_DATA):
+                gq[t, i] = slot_f[s, t]
+            gb[i] = -1
+            gd[i] = np.inf
+            gl0 = max(gl0, gq[S_LO, i])
+            gl1 = max(gl1, gq[S_LO + 1, i])
+            gl2 = max(gl2, gq[S_LO + 2, i])
+            gh0 = min(gh0, gq[S_HI, i])
+            gh1 = min(gh1, gq[S_HI + 1, i])
+            gh2 = min(gh2, gq[S_HI + 2, i])
+            ge0 = min(ge0, gq[S_HI, i] - gq[S_LO, i])
+            ge1 = min(ge1, gq[S_HI + 1, i] - gq[S_LO + 1, i])
+            ge2 = min(ge2, gq[S_HI + 2, i] - gq[S_LO + 2, i])
+            gnl0 = max(gnl0, gq[S_NLO, i])
+            gnl1 = max(gnl1, gq[S_NLO + 1, i])
+            gnl2 = max(gnl2, gq[S_NLO + 2, i])
+            gnh0 = min(gnh0, gq[S_NHI, i])
+            gnh1 = min(gnh1, gq[S_NHI + 1, i])
+            gnh2 = min(gnh2, gq[S_NHI + 2, i])
+            gne0 = min(gne0, gq[S_NHI, i] - gq[S_NLO, i])
+            gne1 = min(gne1, gq[S_NHI + 1, i] - gq[S_NLO + 1, i])
+            gne2 = min(gne2, gq[S_NHI + 2, i] - gq[S_NLO + 2, i])
+            gi = min(gi, gq[S_I, i])
+            gc0 += gq[S_LO, i] + gq[S_HI, i]
+            gc1 += gq[S_LO + 1, i] + gq[S_HI + 1, i]
+            gc2 += gq[S_LO + 2, i] + gq[S_HI + 2, i]
+        gc0 /= 2 * g
+        gc1 /= 2 * g
+        gc2 /= 2 * g
+        home = slot_leaf[slot_of[todo[g0]]]
+        thr = np.inf
+        # As kd_best_match: the home leaf, then the sibling subtrees on the climb to the root.
+        up = home
+        stack_node[0] = up
+        stack_lb[0] = 0.0
+        sp = 1
+        while True:
+            while sp > 0:
+                sp -= 1
+                k = stack_node[sp]
+                lb = stack_lb[sp]
+                if lb < 0.0:
+                    u0 = _group_extent(ge0, gh0, gl0, node_s[k, N_HMIN], node_s[k, N_LMAX], node_s[k, N_EMIN])
+                    u1 = _group_extent(ge1, gh1, gl1, node_s[k, N_HMIN + 1], node_s[k, N_LMAX + 1], node_s[k, N_EMIN + 1])
+                    u2 = _group_extent(ge2, gh2, gl2, node_s[k, N_HMIN + 2], node_s[k, N_LMAX + 2], node_s[k, N_EMIN + 2])
+                    intensity = gi + np.float64(node_s[k, N_IMIN])
+                    lb = metric_eval(metric_id, intensity, 0.0, 0.0, 0.0, u0, u1, u2, 1.0, has_cone, c)
+                    if use_cone and lb < thr:
+                        spread = max(
+                            _group_extent(gne0, gnh0, gnl0, node_n[k, NH_MIN], node_n[k, NL_MAX], node_n[k, NE_MIN]),
+                            _group_extent(gne1, gnh1, gnl1, node_n[k, NH_MIN + 1], node_n[k, NL_MAX + 1],
+                                          node_n[k, NE_MIN + 1]),
+                            _group_extent(gne2, gnh2, gnl2, node_n[k, NH_MIN + 2], node_n[k, NL_MAX + 2],
+                                          node_n[k, NE_MIN + 2]))
+                        lb = metric_eval(metric_id, intensity, 0.0, 0.0, 0.0, u0, u1, u2, _cone_cos_bound(spread),
+                                         has_cone, c)
+                if lb >= thr:
                     continue
-                if not transposed:
+                if k < first_leaf:
+                    l = 2 * k + 1
+                    r = l + 1
+                    axis = int(node_s[k, N_AXIS])
+                    qc = gc0 if axis == 0 else (gc1 if axis == 1 else gc2)
+                    if qc >= node_s[k, N_SPLIT]:
+                        l, r = r, l
+                    if node_cnt[r] > 0:
+                        stack_node[sp] = r
+                        stack_lb[sp] = -1.0
+                        sp += 1
+                    if node_cnt[l] > 0:
+                        stack_node[sp] = l
+                        stack_lb[sp] = -1.0
+                        sp += 1
+                    continue
+                s0 = leaf_start[k - first_leaf]
+                cnt = node_cnt[k]
+                # Each member's own bound for the leaf first, all at once (no branches: the loop vectorises).
+                if k != home:
+                    h0 = np.float64(node_s[k, N_HMIN])
+                    h1 = np.float64(node_s[k, N_HMIN + 1])
+                    h2 = np.float64(node_s[k, N_HMIN + 2])
+                    l0 = np.float64(node_s[k, N_LMAX])
+                    l1 = np.float64(node_s[k, N_LMAX + 1])
+                    l2 = np.float64(node_s[k, N_LMAX + 2])
+                    e0 = np.float64(node_s[k, N_EMIN])
+                    e1 = np.float64(node_s[k, N_EMIN + 1])
+                    e2 = np.float64(node_s[k, N_EMIN + 2])
+                    imin = np.float64(node_s[k, N_IMIN])
+                    for m in range(g):
+                        mb[m] = metric_eval(metric_id, gq[S_I, m] + imin, 0.0, 0.0, 0.0,
+                                            _union_extent(gq[S_LO, m], gq[S_HI, m], h0, l0, e0),
+                                            _union_extent(gq[S_LO + 1, m], gq[S_HI + 1, m], h1, l1, e1),
+                                            _union_extent(gq[S_LO + 2, m], gq[S_HI + 2, m], h2, l2, e2), 1.0, has_cone, c)
+                # The leaf's boxes and intensities as columns (once per leaf, for all its scans): a
+                # scan's first pass then reads consecutive values and vectorises.
+                transposed = False
+                for m in range(g):
+                    best_d = gd[m]
+                    if k != home and mb[m] >= best_d:
+                        continue
+                    if not transposed:
+                        for i in range(cnt):
+                            s = s0 + i
+                            for t in range(S_I + 1):
+                                lt[t, i] = slot_f[s, t]
+                        transposed = True
+                    a = todo[g0 + m]
+                    best = gb[m]
+                    qlo0 = gq[S_LO, m]
+                    qlo1 = gq[S_LO + 1, m]
+                    qlo2 = gq[S_LO + 2, m]
+                    qhi0 = gq[S_HI, m]
+                    qhi1 = gq[S_HI + 1, m]
+                    qhi2 = gq[S_HI + 2, m]
+                    qi = gq[S_I, m]
                     for i in range(cnt):
+                        dbuf[i] = metric_eval(metric_id, qi + lt[S_I, i], min(qlo0, lt[S_LO, i]),
+                                              min(qlo1, lt[S_LO + 1, i]), min(qlo2, lt[S_LO + 2, i]),
+                                              max(qhi0, lt[S_HI, i]), max(qhi1, lt[S_HI + 1, i]),
+                                              max(qhi2, lt[S_HI + 2, i]), 1.0, has_cone, c)
+                    for i in range(cnt):
+                        d = dbuf[i]
+                        if d > best_d:
+                            continue
                         s = s0 + i
-                        for t in range(S_I + 1):
-                            lt[t, i] = slot_f[s, t]
-                    transposed = True
-                a = todo[g0 + m]
-                best = gb[m]
-                qlo0 = gq[S_LO, m]
-                qlo1 = gq[S_LO + 1, m]
-                qlo2 = gq[S_LO + 2, m]
-                qhi0 = gq[S_HI, m]
-                qhi1 = gq[S_HI + 1, m]
-                qhi2 = gq[S_HI + 2, m]
-                qi = gq[S_I, m]
-                for i in range(cnt):
-                    dbuf[i] = metric_eval(metric_id, qi + lt[S_I, i], min(qlo0, lt[S_LO, i]),
-                                          min(qlo1, lt[S_LO + 1, i]), min(qlo2, lt[S_LO + 2, i]),
-                                          max(qhi0, lt[S_HI, i]), max(qhi1, lt[S_HI + 1, i]),
-                                          max(qhi2, lt[S_HI + 2, i]), 1.0, has_cone, c)
-                for i in range(cnt):
-                    d = dbuf[i]
-                    if d > best_d:
-                        continue
-                    s = s0 + i
-                    b = slot_id[s]
-                    if b == a:
-                        continue
-                    if use_cone:
-                        lo0 = min(qlo0, slot_f[s, S_LO])
-                        lo1 = min(qlo1, slot_f[s, S_LO + 1])
-                        lo2 = min(qlo2, slot_f[s, S_LO + 2])
-                        hi0 = max(qhi0, slot_f[s, S_HI])
-                        hi1 = max(qhi1, slot_f[s, S_HI + 1])
-                        hi2 = max(qhi2, slot_f[s, S_HI + 2])
-                        intensity = qi + slot_f[s, S_I]
-                        nlo0 = min(gq[S_NLO, m], slot_f[s, S_NLO])
-                        nlo1 = min(gq[S_NLO + 1, m], slot_f[s, S_NLO + 1])
-                        nlo2 = min(gq[S_NLO + 2, m], slot_f[s, S_NLO + 2])
-                        nhi0 = max(gq[S_NHI, m], slot_f[s, S_NHI])
-                        nhi1 = max(gq[S_NHI + 1, m], slot_f[s, S_NHI + 1])
-                        nhi2 = max(gq[S_NHI + 2, m], slot_f[s, S_NHI + 2])
-                        ax, ay, az, cos_half = cone_from_box(nlo0, nlo1, nlo2, nhi0, nhi1, nhi2)
-                        d = metric_eval(metric_id, intensity, lo0, lo1, lo2, hi0, hi1, hi2, cos_half, has_cone, c)
-                    if d < best_d or (d == best_d and b < best):
-                        best = b
-                        best_d = d
-                gb[m] = best
-                gd[m] = best_d
-            thr = 0.0
-            for m in range(g):
-                thr = max(thr, gd[m])
-        if up == 0:
-            break
-        sib = up + 1 if up & 1 else up - 1
-        up = (up - 1) >> 1
-        if node_cnt[sib] > 0:
-            stack_node[0] = sib
-            stack_lb[0] = -1.0
-            sp = 1
-
-
-@njit(cache=True, nogil=True)
-def _group_end(todo, n_todo, slot_of, slot_leaf, i, cap):
-    """End of the search group that starts at ``todo[i]``: the run of clusters in its kd leaf, at most
-    cap long."""
-    leaf = slot_leaf[slot_of[todo[i]]]
-    j = i + 1
-    while j < n_todo and j - i < cap and slot_leaf[slot_of[todo[j]]] == leaf:
-        j += 1
-    return j
+                        b = slot_id[s]
+                        if b == a:
+                            continue
+                        if use_cone:
+                            lo0 = min(qlo0, slot_f[s, S_LO])
+                            lo1 = min(qlo1, slot_f[s, S_LO + 1])
+                            lo2 = min(qlo2, slot_f[s, S_LO + 2])
+                            hi0 = max(qhi0, slot_f[s, S_HI])
+                            hi1 = max(qhi1, slot_f[s, S_HI + 1])
+                            hi2 = max(qhi2, slot_f[s, S_HI + 2])
+                            intensity = qi + slot_f[s, S_I]
+                            nlo0 = min(gq[S_NLO, m], slot_f[s, S_NLO])
+                            nlo1 = min(gq[S_NLO + 1, m], slot_f[s, S_NLO + 1])
+                            nlo2 = min(gq[S_NLO + 2, m], slot_f[s, S_NLO + 2])
+                            nhi0 = max(gq[S_NHI, m], slot_f[s, S_NHI])
+                            nhi1 = max(gq[S_NHI + 1, m], slot_f[s, S_NHI + 1])
+                            nhi2 = max(gq[S_NHI + 2, m], slot_f[s, S_NHI + 2])
+                            ax, ay, az, cos_half = cone_from_box(nlo0, nlo1, nlo2, nhi0, nhi1, nhi2)
+                            d = metric_eval(metric_id, intensity, lo0, lo1, lo2, hi0, hi1, hi2, cos_half, has_cone, c)
+                        if d < best_d or (d == best_d and b < best):
+                            best = b
+                            best_d = d
+                    gb[m] = best
+                    gd[m] = best_d
+                thr = 0.0
+                for m in range(g):
+                    thr = max(thr, gd[m])
+            if up == 0:
+                break
+            sib = up + 1 if up & 1 else up - 1
+            up = (up - 1) >> 1
+            if node_cnt[sib] > 0:
+                stack_node[0] = sib
+                stack_lb[0] = -1.0
+                sp = 1
+        for m in range(g):
+            out_best[todo[g0 + m]] = gb[m]
+            out_best_d[todo[g0 + m]] = gd[m]
+        g0 = g1
 
 
 @njit(cache=True)
@@ -844,7 +854,7 @@ def kd_search_range(kd, todo, n_todo, best, best_d, metric_id, has_cone, use_con
     at the start; lightcuts.parallel.next_task) until none is left.
 
     A group is a run of ``todo`` in one kd leaf (at most a leaf size long), searched together
-    (:func:`kd_best_match_group`) by the thread whose chunk holds its start; order ``todo`` with
+    (:func:`kd_search_groups`) by the thread whose chunk holds its start; order ``todo`` with
     :func:`kd_group_by_leaf` first. Groups depend on ``todo`` only, not on the chunks, and each
     search writes its own entries, so the result does not depend on how a round is split among
     threads. Chunks rather than one range per thread: the two cores are shared with other work and
@@ -852,8 +862,6 @@ def kd_search_range(kd, todo, n_todo, best, best_d, metric_id, has_cone, use_con
     waiting at the end of the round.
     """
     kdt = kd_scratch(kd)
-    slot_of = kd[2]
-    slot_leaf = kd[3]
     cap = kd[8][I_LEAFSIZE]
     gq = np.empty((SLOT_WIDTH, cap))
     gb = np.empty(cap, np.int64)
@@ -865,21 +873,8 @@ def kd_search_range(kd, todo, n_todo, best, best_d, metric_id, has_cone, use_con
         s = t * chunk
         if s >= n_todo:
             return
-        e = min(n_todo, s + chunk)
-        # The first group that starts at or after s: groups are cut from the start of each run.
-        i = s
-        while i > 0 and slot_leaf[slot_of[todo[i - 1]]] == slot_leaf[slot_of[todo[s]]]:
-            i -= 1
-        while i < s:
-            i = _group_end(todo, n_todo, slot_of, slot_leaf, i, cap)
-        while i < e:
-            j = _group_end(todo, n_todo, slot_of, slot_leaf, i, cap)
-            # Groups of one too: a call of kd_best_match here would compile it a second time (seconds).
-            kd_best_match_group(kdt, todo, i, j, metric_id, has_cone, use_cone, c, gq, gb, gd, mb, lt)
-            for m in range(j - i):
-                best[todo[i + m]] = gb[m]
-                best_d[todo[i + m]] = gd[m]
-            i = j
+        kd_search_groups(kdt, todo, n_todo, s, min(n_todo, s + chunk), best, best_d, metric_id, has_cone, use_cone,
+                         c, gq, gb, gd, mb, lt)
 
 
 @njit(cache=True, nogil=True)
