@@ -171,8 +171,9 @@ def pack_nodes(node_f: np.ndarray, node_k: np.ndarray) -> tuple[np.ndarray, np.n
 
     A cut reads nodes in an order no layout can predict, and with 10^5 lights the tree is larger
     than the L2 cache: one 64-byte line a node (float32) instead of the rows' 160 bytes in two
-    arrays. The bounds stay bounds: boxes are rounded outwards and
-    cones widened by CONE_WIDEN (float32 rounding moves an axis by about 1e-7 rad). The summed
+    arrays. The bounds stay bounds: boxes are rounded outwards and cones widened by CONE_WIDEN
+    (float32 rounding moves an axis by about 1e-7 rad, and the float32 frame coefficient tilts the
+    cone's frame by about as much). The summed
     intensity is rounded to the nearest float32 (relative 6e-8), in the estimate and bound alike.
     """
     k = node_f.shape[0]
