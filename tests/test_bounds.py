@@ -17,8 +17,9 @@ from lightcuts.render.bounds import (BOUND_SLACK, DIRECTIONAL, OMNI, ORIENTED, b
                                      cone_cos_bound, geometric_bound, material_bound, max_cos_in_box)
 from lightcuts.lights.lightset import LUMINANCE, LightSet
 from lightcuts.render.bounds import receiver_frames
-from lightcuts.render.cut import (LF_INDIRECT, LF_NRM, LF_POS, LF_TYPE, NB_I, NF_I, NK_LEFT, NK_REP, NK_RIGHT,
-                                  _light_mg, build_forest, node_bound)
+from lightcuts.errors import LightcutsError
+from lightcuts.render.cut import (LF_INDIRECT, LF_NRM, LF_POS, LF_TYPE, NB_I, NB_REP, NF_I, NK_LEFT, NK_REP, NK_RIGHT,
+                                  REP_BITS, _light_mg, build_forest, node_bound, pack_nodes)
 from lightcuts.render.shading import facing_normal, reflect, unshadowed_contribution
 from lightcuts.trees.build import build_tree
 
@@ -312,3 +313,17 @@ def test_packed_node_records_bound_every_light_below_them(builder):
             assert not bad.any(), (trial, np.flatnonzero(bad)[:5], bounds[bad][:5], total[bad][:5])
             checked += int((inner & (total > 0)).sum())
         assert checked > 1000
+
+
+def test_node_records_refuse_representatives_beyond_their_bits():
+    # A record packs the representative's light id below REP_BITS and the flags above it: an id that
+    # does not fit must be refused, not silently mixed into the flags.
+    node_f = np.zeros((1, 16))
+    for rep, ok in ((2 ** REP_BITS - 1, True), (2 ** REP_BITS, False)):
+        node_k = np.array([[-1, -1, rep, 1]], np.int64)
+        if ok:
+            node_b, node_bi = pack_nodes(node_f, node_k)
+            assert node_bi[0, NB_REP] & (2 ** REP_BITS - 1) == rep and node_bi[0, NB_REP] >> REP_BITS == 1
+        else:
+            with pytest.raises(LightcutsError, match="2\\^28 lights"):
+                pack_nodes(node_f, node_k)
