@@ -13,8 +13,9 @@ __version__ = "0.1.0"
 # LLVM's SLP vectorizer (straight-line code on pairs of doubles): numba ships it switched off (since
 # 2023, numba PR #8852, after miscompilations of integer code reported with older LLVMs). lightcuts
 # turns it on for the process unless NUMBA_SLP_VECTORIZE is set: the lightcut's bounds compute the
-# same arithmetic for the axes of a box, and the Cornell-box render took 8-11% less time with it. Every output was checked bit for bit against the vectorizer off (lights,
-# every builder and metric, renders, the reference). NUMBA_SLP_VECTORIZE=0 switches it off. numba
+# same arithmetic for the axes of a box, and the Cornell-box render took 8-11% less time with it.
+# Every output was checked bit for bit against the vectorizer off (lights, every builder and metric,
+# renders, the reference). NUMBA_SLP_VECTORIZE=0 switches it off. numba
 # reads the variable again before each compilation, so this holds even if numba was imported first;
 # kernels already in numba's on-disk cache keep the code they were compiled with.
 os.environ.setdefault("NUMBA_SLP_VECTORIZE", "1")

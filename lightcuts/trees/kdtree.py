@@ -613,7 +613,8 @@ def _group_extent(gemin, ghmin, glmax, hmin, lmax, emin):
 
 
 @njit(cache=True, nogil=True)
-def kd_search_groups(kd, todo, n_todo, first, last, out_best, out_best_d, metric_id, has_cone, use_cone, c, gq, gb, gd, mb, lt):
+def kd_search_groups(kd, todo, n_todo, first, last, out_best, out_best_d, metric_id, has_cone, use_cone, c,
+                     gq, gb, gd, mb, lt):
     """findBestMatch for the clusters of the groups that start in ``todo[first:last]`` (a group: a run of
     ``todo[:n_todo]`` in one kd leaf, at most a leaf size long), each group in one traversal.
 
@@ -703,8 +704,10 @@ def kd_search_groups(kd, todo, n_todo, first, last, out_best, out_best_d, metric
                 lb = stack_lb[sp]
                 if lb < 0.0:
                     u0 = _group_extent(ge0, gh0, gl0, node_s[k, N_HMIN], node_s[k, N_LMAX], node_s[k, N_EMIN])
-                    u1 = _group_extent(ge1, gh1, gl1, node_s[k, N_HMIN + 1], node_s[k, N_LMAX + 1], node_s[k, N_EMIN + 1])
-                    u2 = _group_extent(ge2, gh2, gl2, node_s[k, N_HMIN + 2], node_s[k, N_LMAX + 2], node_s[k, N_EMIN + 2])
+                    u1 = _group_extent(ge1, gh1, gl1, node_s[k, N_HMIN + 1], node_s[k, N_LMAX + 1],
+                                       node_s[k, N_EMIN + 1])
+                    u2 = _group_extent(ge2, gh2, gl2, node_s[k, N_HMIN + 2], node_s[k, N_LMAX + 2],
+                                       node_s[k, N_EMIN + 2])
                     intensity = gi + np.float64(node_s[k, N_IMIN])
                     lb = metric_eval(metric_id, intensity, 0.0, 0.0, 0.0, u0, u1, u2, 1.0, has_cone, c)
                     if use_cone and lb < thr:
@@ -752,7 +755,8 @@ def kd_search_groups(kd, todo, n_todo, first, last, out_best, out_best_d, metric
                         mb[m] = metric_eval(metric_id, gq[S_I, m] + imin, 0.0, 0.0, 0.0,
                                             _union_extent(gq[S_LO, m], gq[S_HI, m], h0, l0, e0),
                                             _union_extent(gq[S_LO + 1, m], gq[S_HI + 1, m], h1, l1, e1),
-                                            _union_extent(gq[S_LO + 2, m], gq[S_HI + 2, m], h2, l2, e2), 1.0, has_cone, c)
+                                            _union_extent(gq[S_LO + 2, m], gq[S_HI + 2, m], h2, l2, e2), 1.0,
+                                            has_cone, c)
                 # The leaf's boxes and intensities as columns (once per leaf, for all its scans): a
                 # scan's first pass then reads consecutive values and vectorises.
                 transposed = False
