@@ -1,9 +1,12 @@
 """lightcuts: Lightcuts rendering of many-light scenes with pluggable light-tree builders.
 
-Pipeline, one sub-package per stage: ``scene`` -> ``lights`` -> ``trees`` -> ``accel`` (ray casting)
--> ``render`` -> ``report``. Data travel between stages as flat numpy arrays in small classes
-(:class:`~lightcuts.scene.Scene`, :class:`~lightcuts.lights.LightSet`, :class:`~lightcuts.trees.LightTree`),
-each saved as ``.npz``.
+One sub-package per stage, each importing only the stages before it: ``scene`` -> ``accel`` (ray
+casting over the scene's triangles, which the particle tracer already needs) -> ``lights`` -> ``trees``
+-> ``render`` -> ``report``. Above them, ``commands`` (one module per CLI command, each resolving its
+plan before any work) and ``cli``; below them, ``config`` (the run schema and its defaults),
+``registry`` (plugins) and small helpers. Data travel between stages as flat numpy arrays in small
+classes (:class:`~lightcuts.scene.Scene`, :class:`~lightcuts.lights.LightSet`,
+:class:`~lightcuts.trees.LightTree`), each saved as ``.npz``.
 """
 
 import os

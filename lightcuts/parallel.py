@@ -10,6 +10,7 @@ paths) take them one at a time from a shared counter (:func:`next_task`).
 
 from __future__ import annotations
 
+import contextlib
 from concurrent.futures import ThreadPoolExecutor, wait
 
 import numba
@@ -88,3 +89,14 @@ def balance(sizes: np.ndarray, threads: int) -> list[np.ndarray]:
         groups[w].append(j)
         load[w] += int(sizes[j])
     return [np.array(g, np.int64) for g in groups if g]
+
+
+@contextlib.contextmanager
+def num_threads(n: int):
+    """A block run with ``n`` numba threads (the count before is restored on exit)."""
+    before = numba.get_num_threads()
+    numba.set_num_threads(n)
+    try:
+        yield n
+    finally:
+        numba.set_num_threads(before)

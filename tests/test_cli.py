@@ -7,6 +7,8 @@ from pathlib import Path
 
 import pytest
 
+from conftest import cli_recording_work
+
 ROOT = Path(__file__).parent.parent
 
 
@@ -40,10 +42,12 @@ def test_bad_config_one_line_nothing_written(tmp_path, command, text, expected):
 
 @pytest.mark.parametrize("text, expected", BAD[3:])
 def test_unknown_names_fail_before_rendering(tmp_path, text, expected):
+    """The error comes from the plan step: no scene, lights or tree were made, nothing written."""
     (tmp_path / "run.yaml").write_text(text + "lights: {direct: {count: 16}}\ncamera: {resolution: [8, 8]}\n")
-    r = run_cli("render", "run.yaml", "--no-progress", cwd=tmp_path)
-    assert r.returncode == 2, r.stderr
-    assert expected in r.stderr and "Traceback" not in r.stderr
+    rc, calls, err = cli_recording_work(["render", "run.yaml", "--no-progress"], tmp_path)
+    assert rc == 2, err
+    assert calls == []
+    assert expected in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "renders").exists()
 
 

@@ -20,34 +20,15 @@ from lightcuts.cli import main as cli_main
 from lightcuts.errors import LightcutsError
 from lightcuts.lights import LightSet
 from lightcuts.trees import (BUILDERS, METRICS, LightTree, build_tree, default_c, get_builder, get_metric,
-                             load_builtins, metric_eval, register_metric, validate_tree)
+                             metric_eval, register_metric, validate_tree)
 from lightcuts.trees.cones import cone_contains, cone_from_box, cone_sine, cones_from_boxes
 from lightcuts.trees.metrics import metric_values
 
-load_builtins()
+from conftest import random_lights, unit
+
 ALL_BUILDERS = BUILDERS.names()
 LIGHT_TYPES = ("omni", "oriented", "directional")
 FAST = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-
-
-def unit(v):
-    v = np.asarray(v, np.float64)
-    return v / np.linalg.norm(v, axis=-1, keepdims=True)
-
-
-def random_lights(n, light_type, seed=0, duplicates=False):
-    """n lights of one type in a unit box; duplicates: every position (and normal) appears twice."""
-    rng = np.random.default_rng(seed)
-    m = (n + 1) // 2 if duplicates else n
-    pos = rng.random((m, 3))
-    nrm = unit(rng.normal(size=(m, 3)))
-    if duplicates:
-        pos, nrm = np.repeat(pos, 2, axis=0)[:n], np.repeat(nrm, 2, axis=0)[:n]
-    if light_type == "directional":
-        pos = nrm.copy()
-    if light_type != "oriented":
-        nrm = np.zeros_like(pos)
-    return LightSet(pos, nrm, rng.random((n, 3)) * [1.0, 2.0, 0.5], light_type)
 
 
 def normal_box_cone(normals):
@@ -206,7 +187,13 @@ def test_builder_contract(builder, light_type, n, duplicates):
 @pytest.mark.parametrize("metric", ["walter2005", "surface-area"])
 def test_builder_contract_other_metrics(builder, metric):
     lights = random_lights(60, "oriented", seed=11)
-    validate_tree(build_tree(lights, builder=builder, metric=metric), lights)
+    if "metric" not in BUILDERS.entry(builder).reads:
+        with pytest.raises(LightcutsError, match=f"tree.metric: builder '{builder}' reads no metric"):
+            build_tree(lights, builder=builder, metric=metric)
+        return
+    tree = build_tree(lights, builder=builder, metric=metric)
+    validate_tree(tree, lights)
+    assert tree.meta["metric"] == metric
 
 
 @pytest.mark.parametrize("builder", ALL_BUILDERS)
@@ -243,10 +230,9 @@ def test_nodes_filled_bottom_up():
 
 
 @pytest.mark.parametrize("builder", ["divisive-6d", "test-shuffled"])
-def test_fill_on_threads_is_the_bottom_up_fill(builder, scratch_registries):
+def test_fill_on_threads_is_the_bottom_up_fill(builder, scratch_registries, thread_counts):
     """A tree large enough for the threaded fill: every node is its children's union, and the
     arrays are the same with one thread or two (a preorder builder, and one that is not)."""
-    import numba
 
     from lightcuts.trees import build as build_module
 
@@ -262,14 +248,11 @@ def test_fill_on_threads_is_the_bottom_up_fill(builder, scratch_registries):
         return remap(left)[inv], remap(right)[inv], light[inv], perm[root]
 
     BUILDERS.register("test-shuffled", shuffled)
-    before = numba.get_num_threads()
+    counts, num_threads = thread_counts
     trees = []
-    for threads in (1, min(2, numba.config.NUMBA_NUM_THREADS)):
-        numba.set_num_threads(threads)
-        try:
+    for threads in counts:
+        with num_threads(threads):
             trees.append(build_tree(lights, builder=builder, seed=5))
-        finally:
-            numba.set_num_threads(before)
     one, two = trees
     for key in ("bbox_min", "bbox_max", "cone_axis", "cone_cos", "intensity", "rep"):
         np.testing.assert_array_equal(getattr(one, key), getattr(two, key), err_msg=key)
@@ -307,14 +290,17 @@ def test_default_c():
     assert default_c(lights) == 0.25
     lights.meta["scene_diagonal"] = 8.0
     assert default_c(lights) == 0.5
-    assert build_tree(lights, builder="divisive-3d").meta["c"] == 0.5
-    assert build_tree(lights, builder="divisive-3d", c=2.0).meta["c"] == 2.0
+    assert build_tree(lights, builder="divisive-6d").meta["c"] == 0.5
+    assert "c" not in build_tree(lights, builder="divisive-3d").meta  # reads no c
+    assert build_tree(lights, builder="divisive-6d", c=2.0).meta["c"] == 2.0
+    with pytest.raises(LightcutsError, match="tree.c: builder .divisive-3d. reads no c"):
+        build_tree(lights, builder="divisive-3d", c=2.0)
     sun = random_lights(50, "directional", seed=4)
     sun.meta["scene_diagonal"] = 8.0  # directional lights live on the unit sphere: not used
     diag = np.linalg.norm(sun.position.max(axis=0) - sun.position.min(axis=0))
     assert default_c(sun) == pytest.approx(diag / 16)
     with pytest.raises(LightcutsError, match="tree.c"):
-        build_tree(lights, builder="divisive-3d", c=-1.0)
+        build_tree(lights, builder="divisive-6d", c=-1.0)
 
 
 def test_divisive_splits_at_the_middle_not_the_median():
@@ -398,13 +384,6 @@ def _perimeter_metric(intensity, lo0, lo1, lo2, hi0, hi1, hi2, cone_cos, has_con
     return intensity * ((hi0 - lo0) + (hi1 - lo1) + (hi2 - lo2)) + (1.0 - cone_cos if has_cone else 0.0)
 
 
-@pytest.fixture
-def scratch_registries(monkeypatch):
-    """Registrations made in a test are forgotten after it."""
-    monkeypatch.setattr(BUILDERS, "_entries", dict(BUILDERS._entries))
-    monkeypatch.setattr(BUILDERS, "_aliases", dict(BUILDERS._aliases))
-    monkeypatch.setattr(METRICS, "_entries", dict(METRICS._entries))
-    monkeypatch.setattr(METRICS, "_aliases", dict(METRICS._aliases))
 
 
 def test_user_metric_with_greedy(scratch_registries):
@@ -507,7 +486,7 @@ def test_unknown_names_fail_with_the_valid_ones():
     with pytest.raises(LightcutsError, match=r"unknown builder 'nope'; valid: .*divisive-3d"):
         build_tree(lights, builder="nope")
     with pytest.raises(LightcutsError, match=r"unknown metric 'nope'; valid: .*walter2008"):
-        build_tree(lights, builder="divisive-3d", metric="nope")
+        build_tree(lights, builder="greedy", metric="nope")
 
 
 def test_runtime_registered_builder_is_found(scratch_registries):
@@ -636,7 +615,14 @@ def test_entry_point_plugins_are_found(tmp_path):
 # ----------------------------------------------------------------------------- scaling report
 
 def test_scaling_helpers():
-    from lightcuts.report.scaling import fitted_exponent, parse_sizes, resolve_builders
+    from lightcuts.commands.scaling import parse_sizes, resolve_specs
+    from lightcuts.config.schema import config_from_dict
+    from lightcuts.report.scaling import fitted_exponent
+
+    cfg = config_from_dict({"scene": {"builtin": "cornell"}})
+
+    def resolve_builders(text):
+        return [s.name for s in resolve_specs(text, cfg)]
 
     assert parse_sizes("400, 100,400") == [100, 400]
     for bad in ("", "10,x", "0"):

@@ -1,13 +1,10 @@
-"""The ray-caster interface and registry, and the input checks every caster shares."""
+"""The ray-caster interface and the input checks every caster shares."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from lightcuts.errors import LightcutsError
-from lightcuts.registry import Registry
-
-RAY_CASTERS: Registry = Registry("ray caster", group="lightcuts.ray_casters")
 
 # Embree works in float32: a coordinate beyond this would become inf inside the BVH traversal.
 _F32_MAX = float(np.finfo(np.float32).max)
@@ -92,14 +89,3 @@ def check_mesh(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
     if faces.size and (faces.min() < 0 or faces.max() >= len(vertices)):
         raise LightcutsError(f"ray caster: faces index vertices outside [0, {len(vertices)})")
     return np.ascontiguousarray(vertices, np.float32), np.ascontiguousarray(faces, np.uint32)
-
-
-def make_caster(scene, name: str = "embree") -> RayCaster:
-    """Build the ray caster ``name`` over ``scene`` (a Scene, or a (vertices, faces) pair)."""
-    import lightcuts.accel.embree  # noqa: F401  (registers the built-in casters)
-
-    if isinstance(scene, tuple):
-        vertices, faces = scene
-    else:
-        vertices, faces = scene.vertices, scene.faces
-    return RAY_CASTERS.get(name)(np.asarray(vertices), np.asarray(faces))

@@ -24,7 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from lightcuts.accel.base import RAY_CASTERS, RayCaster, check_mesh, check_rays
+from lightcuts.accel.base import RayCaster, check_mesh, check_rays
+from lightcuts.accel.registry import RAY_CASTERS
 from lightcuts.errors import LightcutsError
 
 # Embree 4 C API constants (rtcore_common.h, rtcore_geometry.h, rtcore_scene.h, rtcore_device.h).
@@ -118,7 +119,7 @@ def _embree_lib() -> _EmbreeLib:
     return _EmbreeLib(path, version, lib, intersect1, occluded1, occluded_n, width)
 
 
-@RAY_CASTERS.register("embree")
+@RAY_CASTERS.register("embree", kernel_callable=True)
 class EmbreeCaster(RayCaster):
     """Embree 4 through ctypes, rays cast by numba kernels on all cores.
 
@@ -247,7 +248,7 @@ class EmbreeCaster(RayCaster):
         return out
 
 
-@RAY_CASTERS.register("embreex")
+@RAY_CASTERS.register("embreex", kernel_callable=False)
 class EmbreexCaster(RayCaster):
     """embreex's batch ``scene.run``: one core; tnear emulated by moving the origin along the ray.
 

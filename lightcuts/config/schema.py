@@ -14,7 +14,15 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from lightcuts.errors import LightcutsError
-from lightcuts.render import MAX_CUT
+from lightcuts.limits import MAX_CUT
+
+#: Run defaults, here alone: commands and stage APIs read them from this module.
+DEFAULT_BUILDER = "agglomerative"
+#: The metric of builders that read one, when the config names none.
+DEFAULT_METRIC = "walter2008"
+DEFAULT_EPS = 0.02
+DEFAULT_MAX_CUT = 1000
+DEFAULT_RAY_CASTER = "embree"
 
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 PositiveInt = Annotated[int, Field(ge=1)]
@@ -123,9 +131,12 @@ class LightsConfig(Strict):
 
 
 class TreeConfig(Strict):
-    builder: str = "agglomerative"
-    metric: str = "walter2008"
-    c: Annotated[float, Field(gt=0)] | None = None  # default: scene bbox diagonal / 16
+    """The builder and the parameters it reads; ``metric`` and ``c`` only for builders that read them
+    (``lightcuts.trees.spec``): None gives DEFAULT_METRIC and the scene diagonal / 16."""
+
+    builder: str = DEFAULT_BUILDER
+    metric: str | None = None
+    c: Annotated[float, Field(gt=0)] | None = None
 
 
 class Clamp(Strict):
@@ -137,11 +148,11 @@ class Clamp(Strict):
 
 class RenderConfig(Strict):
     spp: PositiveInt = 1
-    eps: Annotated[float, Field(ge=0)] = 0.02
-    max_cut: Annotated[int, Field(ge=1, le=MAX_CUT)] = 1000
+    eps: Annotated[float, Field(ge=0)] = DEFAULT_EPS
+    max_cut: Annotated[int, Field(ge=1, le=MAX_CUT)] = DEFAULT_MAX_CUT
     clamp: Clamp = Clamp()
     exposure: float = 0.0  # stops, applied to the PNG only
-    ray_caster: str = "embree"
+    ray_caster: str = DEFAULT_RAY_CASTER
     # Render only the window [x0, y0, x1, y1) of the image (pixels), e.g. for reference checks.
     crop: Annotated[list[int], Field(min_length=4, max_length=4)] | None = None
 

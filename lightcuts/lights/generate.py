@@ -37,11 +37,12 @@ def load_environment(cfg) -> EnvironmentMap | None:
                           scale=env.scale)
 
 
-def lights_from_config(cfg, scene, caster=None) -> dict[str, LightSet]:
+def lights_from_config(cfg, scene, caster=None, envmap: EnvironmentMap | None = None) -> dict[str, LightSet]:
     """Light sets keyed by type (``oriented``, ``directional``), empty types omitted.
 
-    cfg : RunConfig; scene : Scene; caster : RayCaster for particle tracing (built from
-    ``cfg.render.ray_caster`` if None and indirect lights are asked for).
+    cfg : RunConfig; scene : Scene; caster : RayCaster for particle tracing (required when indirect
+    lights are asked for); envmap : the config's environment map (:func:`load_environment`, loaded
+    once per run by the caller), None without one.
 
     ``oriented`` = direct lights then indirect VPLs; ``directional`` = the sun then the environment
     samples. Each set's ``meta``: scene name, scene bbox min/max and diagonal, the run seed, and
@@ -65,9 +66,7 @@ def lights_from_config(cfg, scene, caster=None) -> dict[str, LightSet]:
         counts["count_direct"] = len(d)
     if lc.indirect.count > 0:
         if caster is None:
-            from lightcuts.accel import make_caster
-
-            caster = make_caster(scene, cfg.render.ray_caster)
+            raise TypeError("lights_from_config: indirect lights need a ray caster")
         ind = indirect_lights(scene, caster, lc.indirect.count, sub_seed(cfg.seed, "indirect"),
                               lc.indirect.max_bounces, lc.indirect.rr_start)
         oriented.append(ind)
@@ -76,9 +75,10 @@ def lights_from_config(cfg, scene, caster=None) -> dict[str, LightSet]:
     if lc.sun is not None:
         directional.append(sun_light(lc.sun.direction, lc.sun.irradiance))
         counts["count_sun"] = 1
-    env = load_environment(cfg)
-    if env is not None:
-        e = environment_lights(env, lc.environment.count, sub_seed(cfg.seed, "environment"))
+    if (envmap is None) != (lc.environment is None):
+        raise TypeError("lights_from_config: pass the config's environment map (load_environment)")
+    if envmap is not None:
+        e = environment_lights(envmap, lc.environment.count, sub_seed(cfg.seed, "environment"))
         directional.append(e)
         counts["count_environment"] = len(e)
     lo, hi = scene.bounds

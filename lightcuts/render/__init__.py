@@ -1,5 +1,3 @@
-#: Low bits of a lightcut heap entry that hold its slot (lightcuts.render.cut._heap_entry), and so the
-#: largest cut (the scratch has max_cut + 2 slots). Here rather than in cut, so that validating a
-#: config (lightcuts.config.schema) does not import the kernels.
-SLOT_BITS = 20
-MAX_CUT = (1 << SLOT_BITS) - 2
+"""Rendering: the lightcut per receiver (forest, heap, cut, bounds), shading, camera and the image loop."""
+
+from lightcuts.limits import MAX_CUT, SLOT_BITS  # noqa: F401

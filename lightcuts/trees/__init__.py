@@ -8,9 +8,10 @@ tree against its lights independently of how it was built.
 
 from lightcuts.trees.build import build_tree, default_c
 from lightcuts.trees.metrics import Metric, metric_eval, register_metric
-from lightcuts.trees.registry import BUILDERS, METRICS, get_builder, get_metric, load_builtins
+from lightcuts.trees.registry import BUILDERS, METRICS, get_builder, get_metric
+from lightcuts.trees.spec import TreeSpec, tree_spec
 from lightcuts.trees.tree import LightTree
 from lightcuts.trees.validate import validate_tree
 
 __all__ = ["BUILDERS", "METRICS", "LightTree", "Metric", "build_tree", "default_c", "get_builder", "get_metric",
-           "load_builtins", "metric_eval", "register_metric", "validate_tree"]
+           "metric_eval", "register_metric", "TreeSpec", "tree_spec", "validate_tree"]

@@ -458,7 +458,7 @@ def agglomerative_stats(position, normal, luminance, light_type: str, metric: Me
     return left, right, light, 2 * n - 2, stats
 
 
-@BUILDERS.register("agglomerative")
+@BUILDERS.register("agglomerative", reads=("metric", "c"), builtin_metrics_only=True)
 def agglomerative(position, normal, luminance, light_type: str, metric: Metric, c: float, seed: int):
     """Locally-ordered agglomerative clustering (Walter et al. 2008, Fig. 4); see the module docstring.
 
@@ -470,7 +470,7 @@ def agglomerative(position, normal, luminance, light_type: str, metric: Metric, 
     return agglomerative_stats(position, normal, luminance, light_type, metric, c, seed)[:4]
 
 
-@BUILDERS.register("agglomerative-heap")
+@BUILDERS.register("agglomerative-heap", reads=("metric", "c"), builtin_metrics_only=True)
 def agglomerative_heap(position, normal, luminance, light_type: str, metric: Metric, c: float, seed: int):
     """Heap-based agglomerative clustering (Walter et al. 2008, Fig. 3); see the module docstring.
 

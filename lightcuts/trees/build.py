@@ -29,8 +29,8 @@ from lightcuts.hashing import mix64 as _mix64
 from lightcuts.lights.lightset import LUMINANCE, LightSet
 from lightcuts.parallel import balance, on_threads, run_all, threads_for
 from lightcuts.trees.cones import cone_from_box
-from lightcuts.trees.metrics import Metric, as_metric
-from lightcuts.trees.registry import get_builder, get_metric
+from lightcuts.trees.metrics import Metric
+from lightcuts.trees.spec import TreeSpec, tree_spec
 from lightcuts.trees.tree import LightTree
 
 # Metadata keys holding the scene's bounding-box diagonal, in order of preference.
@@ -478,36 +478,48 @@ def _fill_nodes(order, size, left, right, light, position, normal, intensity, lu
     return bbox_min, bbox_max, cone_axis, cone_cos, node_intensity, rep
 
 
-def build_tree(lights: LightSet, builder: str = "agglomerative", metric: str = "walter2008",
+def build_tree(lights: LightSet, builder: str | TreeSpec | None = None, metric: str | Metric | None = None,
                c: float | None = None, seed: int = 0) -> LightTree:
     """A LightTree over ``lights`` (one light type), 2N-1 nodes.
 
-    builder : registered builder name (``lightcuts.trees.BUILDERS.names()``)
-    metric : registered metric name (``lightcuts.trees.METRICS.names()``)
-    c : cone-term scale of the metric, world units; default :func:`default_c` (scene diagonal / 16)
+    builder : a :class:`~lightcuts.trees.spec.TreeSpec` from the plan step, or a registered builder
+        name (``lightcuts.trees.BUILDERS.names()``; default the schema's), resolved with ``metric``
+        and ``c`` by :func:`~lightcuts.trees.spec.tree_spec`
+    metric : registered metric name or Metric, if the builder reads one (default the schema's)
+    c : cone-term scale, world units, if the builder reads it; default :func:`default_c`
+        (scene diagonal / 16)
     seed : seed of the builder (if it draws) and of the representatives
 
-    Builders must handle any N >= 1 (N = 1: one leaf, which is the root).
-    LightcutsError for unknown names, bad lights (non-finite, negative intensity, non-unit normals)
-    or a builder that returns an invalid topology.
+    Builders must handle any N >= 1 (N = 1: one leaf, which is the root). The tree's meta records
+    the builder, and the metric and c only where they were read.
+    LightcutsError for unknown names, parameters the builder does not read, bad lights (non-finite,
+    negative intensity, non-unit normals) or a builder that returns an invalid topology.
     """
-    builder_fn = get_builder(builder)
-    metric_obj: Metric = as_metric(get_metric(metric), metric)
+    if isinstance(builder, TreeSpec):
+        if metric is not None or c is not None:
+            raise TypeError("build_tree: give metric and c inside the TreeSpec")
+        spec = builder
+    else:
+        spec = tree_spec(builder, metric, c)
+    spec.check_size(len(lights))
     normal, luminance = _check_lights(lights)
-    if c is None:
-        c = default_c(lights)
-    c = float(c)
-    if not (np.isfinite(c) and c > 0):
-        raise LightcutsError(f"tree.c = {c}: must be a positive finite number")
+    c = spec.c
+    if c is None and "c" in spec.builder.reads:
+        c = float(default_c(lights))
     seed = int(seed)
     n = len(lights)
     # Oriented lights' normals come back from _check_lights rescaled to unit length: the
     # box-of-normals cone assumes unit vectors, and normals within _UNIT_TOL of unit length (e.g.
     # read back from float32) would otherwise stray outside their cones by up to ~sqrt(_UNIT_TOL).
-    out = builder_fn(lights.position, normal, luminance, lights.type, metric_obj, c, seed)
-    left, right, light, root, order, size = _check_topology(builder, out, n)
+    out = spec.builder.obj(lights.position, normal, luminance, lights.type, spec.metric, c, seed)
+    left, right, light, root, order, size = _check_topology(spec.name, out, n)
     bbox_min, bbox_max, cone_axis, cone_cos, node_intensity, rep = _fill_nodes(
         order, size, left, right, light, lights.position, normal, lights.intensity, luminance,
         lights.type == "oriented", np.uint64(seed % 2**64))
-    meta = dict(builder=builder, metric=metric_obj.name, c=c, seed=seed, type=lights.type, n_lights=n)
+    meta = dict(builder=spec.name)
+    if spec.metric is not None:
+        meta["metric"] = spec.metric.name
+    if spec.reads_c:
+        meta["c"] = c
+    meta.update(seed=seed, type=lights.type, n_lights=n)
     return LightTree(left, right, light, bbox_min, bbox_max, cone_axis, cone_cos, node_intensity, rep, root, meta)

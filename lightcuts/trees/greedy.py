@@ -24,6 +24,9 @@ from numba import njit, types
 from lightcuts.trees.cones import cone_from_box
 from lightcuts.trees.registry import BUILDERS
 
+#: The largest light set ``greedy`` accepts: it is O(N^2) (seconds at this size, hours at 10^5).
+GREEDY_MAX_LIGHTS = 20000
+
 
 @njit
 def _union_cost(cost, has_cone, c, lum, lo, hi, nlo, nhi, a, b):
@@ -163,7 +166,7 @@ def _greedy(cost, has_cone, c, position, normal, luminance):
     return left, right, light
 
 
-@BUILDERS.register("greedy")
+@BUILDERS.register("greedy", reads=("metric", "c"), max_lights=GREEDY_MAX_LIGHTS)
 def greedy(position, normal, luminance, light_type, metric, c, seed):
     """Reference builder: globally cheapest pair first (O(N^2)); any metric, user metrics included."""
     has_cone = light_type == "oriented" and metric.uses_cone

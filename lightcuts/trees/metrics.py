@@ -31,7 +31,7 @@ or, from another package, an entry point in group ``lightcuts.metrics`` naming s
 :class:`Metric`. It gets ``id = USER_METRIC_ID`` (-1). Every Metric has such an ``fn`` (built-ins
 too: the code metric_eval runs), which the ``greedy`` builder calls through a first-class function
 argument (one cached kernel for every metric). Builders that need a lower bound of the metric (the
-kd-tree of ``agglomerative``) accept built-in metrics only; the divisive builders ignore the metric.
+kd-tree of ``agglomerative``) accept built-in metrics only; the divisive builders read no metric.
 """
 
 from __future__ import annotations
@@ -141,19 +141,14 @@ class Metric:
                                  f"fn(intensity, lo0, lo1, lo2, hi0, hi1, hi2, cone_cos, has_cone, c)")
 
     @property
+    def reads(self) -> tuple[str, ...]:
+        """The run parameters the metric uses: ``c`` with a cone term (the registry reads this)."""
+        return ("c",) if self.uses_cone else ()
+
+    @property
     def builtin(self) -> bool:
         """Whether kernels may call ``metric_eval(self.id, ...)`` instead of ``self.fn``."""
         return self.id >= 0
-
-
-METRICS.register("walter2008", Metric(
-    "walter2008", WALTER2008, True,
-    "I (L^2 + c^2 S^2)^2, S = sine of the cone half-angle (1 past 90 degrees); Walter et al. 2008, eq. 2"))
-METRICS.register("walter2005", Metric(
-    "walter2005", WALTER2005, True, "I (L^2 + c^2 (1 - cos beta)^2); Walter et al. 2005"))
-METRICS.register("surface-area", Metric(
-    "surface-area", SURFACE_AREA, False, "surface area of the union box; the 2008 paper's BVH metric"),
-    aliases=("sah",))
 
 
 def register_metric(name: str, fn: Callable, *, uses_cone: bool = True, description: str = "",
@@ -186,3 +181,13 @@ def metric_values(metric: Metric, intensity: np.ndarray, lo: np.ndarray, hi: np.
     """
     return np.array([metric.fn(float(intensity[k]), *map(float, lo[k]), *map(float, hi[k]), float(cone_cos[k]),
                                bool(has_cone), float(c)) for k in range(len(intensity))])
+
+
+METRICS.register("walter2008", Metric(
+    "walter2008", WALTER2008, True,
+    "I (L^2 + c^2 S^2)^2, S = sine of the cone half-angle (1 past 90 degrees); Walter et al. 2008, eq. 2"))
+METRICS.register("walter2005", Metric(
+    "walter2005", WALTER2005, True, "I (L^2 + c^2 (1 - cos beta)^2); Walter et al. 2005"))
+METRICS.register("surface-area", Metric(
+    "surface-area", SURFACE_AREA, False, "surface area of the union box; the 2008 paper's BVH metric"),
+    aliases=("sah",))

@@ -1,49 +1,49 @@
-"""The builder and metric registries.
+"""The builder and metric registries (see :mod:`lightcuts.registry`).
 
 A builder is a function
 
     builder(position (N,3) float64, normal (N,3) float64, luminance (N,) float64,
-            light_type: str, metric: Metric, c: float, seed: int)
+            light_type: str, metric: Metric | None, c: float | None, seed: int)
         -> (left (2N-1,) int32, right (2N-1,) int32, light (2N-1,) int32, root: int)
 
-that returns only the topology; ``lightcuts.trees.build.build_tree`` then computes every node's
-box, cone, summed intensity and representative the same way for all builders.
+that returns only the topology; ``lightcuts.trees.build.build_tree`` then computes every node's box,
+cone, summed intensity and representative the same way for all builders. A builder declares what it
+reads: ``metric`` (a clustering metric; with the trait ``builtin_metrics_only`` if its kernels need a
+built-in metric's lower bound) and ``c`` (the cone-term scale); it receives None for what it does not
+read. The trait ``max_lights`` bounds the light sets it accepts (the O(N^2) reference).
 
-Outside packages add builders without editing lightcuts, through the entry-point group
-``lightcuts.builders`` (an entry point names the builder function), or at run time with
-``BUILDERS.register("name", fn)``. Metrics likewise (group ``lightcuts.metrics``).
+A metric entry's object is always a :class:`~lightcuts.trees.metrics.Metric` (an njit function
+registered or named by an entry point is wrapped); it reads ``c`` when it has a cone term.
+
+Outside packages add builders through the entry-point group ``lightcuts.builders`` (with
+:func:`lightcuts.registry.declare` on the function; undeclared builders read both parameters),
+metrics through ``lightcuts.metrics``, or at run time with ``BUILDERS.register("name", fn, reads=...)``.
 """
 
 from __future__ import annotations
 
-import importlib
-
 from lightcuts.registry import Registry
 
-BUILDERS: Registry = Registry("builder", group="lightcuts.builders")
-METRICS: Registry = Registry("metric", group="lightcuts.metrics")
 
-# Modules whose import registers the built-in builders and metrics.
-_BUILTIN_MODULES = ("lightcuts.trees.metrics", "lightcuts.trees.divisive", "lightcuts.trees.greedy",
-                    "lightcuts.trees.agglomerative")
-_loaded = False
+def _as_metric(name, obj):
+    from lightcuts.trees.metrics import as_metric
+
+    return as_metric(obj, name)
 
 
-def load_builtins() -> None:
-    """Import the built-in builder and metric modules once (they register themselves)."""
-    global _loaded
-    if _loaded:
-        return
-    _loaded = True
-    for mod in _BUILTIN_MODULES:
-        importlib.import_module(mod)
+BUILDERS: Registry = Registry(
+    "builder", group="lightcuts.builders",
+    builtins=("lightcuts.trees.divisive", "lightcuts.trees.greedy", "lightcuts.trees.agglomerative"),
+    params=("metric", "c"), default_reads=("metric", "c"))
+METRICS: Registry = Registry("metric", group="lightcuts.metrics", builtins=("lightcuts.trees.metrics",),
+                             params=("c",), coerce=_as_metric)
 
 
 def get_builder(name: str):
-    load_builtins()
+    """The builder function registered as ``name``."""
     return BUILDERS.get(name)
 
 
 def get_metric(name: str):
-    load_builtins()
+    """The :class:`~lightcuts.trees.metrics.Metric` registered as ``name``."""
     return METRICS.get(name)

@@ -1,4 +1,4 @@
-"""``lightcuts render CONFIG``: config -> scene -> lights -> trees -> image, outputs and report.
+"""``lightcuts render CONFIG``: config -> plan -> scene -> lights -> trees -> image, outputs and report.
 
 Outputs in ``renders/<name>/`` (or ``--out``), each written atomically:
 ``image.exr`` (linear float RGB), ``image.png`` (sRGB, ``render.exposure`` stops), ``cutsize.png``
@@ -9,45 +9,54 @@ Outputs in ``renders/<name>/`` (or ``--out``), each written atomically:
 from __future__ import annotations
 
 import platform
-import sys
 import time
 from pathlib import Path
 
+from lightcuts.commands.common import add_set, progress_bar
 from lightcuts.config import load_config
 
 
-def _progress_bar(total: int, desc: str, disable: bool):
-    from tqdm import tqdm
+def add_parser(sub) -> None:
+    p = sub.add_parser("render", help="render a YAML run to renders/<name>/")
+    p.add_argument("config")
+    p.add_argument("--out", default=None, help="output folder (default renders/<name>)")
+    p.add_argument("--reference", action="store_true",
+                   help="also render the brute-force reference (every light, every pixel) and compare")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_set(p)
+    p.set_defaults(func=run)
 
-    return tqdm(total=total, desc=desc, unit="row", disable=disable, file=sys.stderr, leave=False,
-                dynamic_ncols=True)
+
+def run(args) -> int:
+    run_render(args)
+    return 0
 
 
 def run_render(args) -> dict:
     """Run a render as the CLI does; returns the report dict (also written to report.json)."""
     from lightcuts import __version__
+    from lightcuts.commands.plan import plan_run, tree_meta
     from lightcuts.io import save_json
-    from lightcuts.lights.generate import load_environment
-    from lightcuts.pipeline import check_names, make_caster, make_lights, make_scene
     from lightcuts.render.integrator import render_image, render_reference
     from lightcuts.report.images import relative_error, write_exr, write_heatmap, write_png
-    from lightcuts.trees.build import build_tree
 
     cfg = load_config(args.config, args.overrides)  # every config error surfaces here, before any work
-    check_names(cfg)
+    plan = plan_run(cfg, render=True)
     out_dir = Path(args.out) if args.out else Path("renders") / cfg.name
 
     t0 = time.perf_counter()
-    scene = make_scene(cfg)
-    caster = make_caster(cfg, scene)
-    light_sets = make_lights(cfg, scene, caster)
-    envmap = load_environment(cfg)
+    scene = plan.scene()
+    caster = plan.make_caster(scene)
+    envmap = plan.environment()
+    light_sets = plan.lights(scene, caster, envmap)
     t_pre = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    trees = {typ: build_tree(ls, builder=cfg.tree.builder, metric=cfg.tree.metric, c=cfg.tree.c, seed=cfg.seed)
-             for typ, ls in light_sets.items()}
+    for ls in light_sets.values():
+        plan.tree.check_size(len(ls))
+    trees = plan.trees(light_sets)
     t_build = time.perf_counter() - t0
+    used = tree_meta(trees)
 
     cam = scene.camera
     rows = cam.height if cfg.render.crop is None else cfg.render.crop[3] - cfg.render.crop[1]
@@ -60,7 +69,7 @@ def run_render(args) -> dict:
     render_image(scene, caster, light_sets, trees, eps=cfg.render.eps, max_cut=cfg.render.max_cut,
                  **{**common, "crop": (x0, y0, x0 + 1, y0 + 1)})
     t_jit = time.perf_counter() - t0
-    with _progress_bar(rows, f"{cfg.name}: lightcuts", args.no_progress) as bar:
+    with progress_bar(rows, f"{cfg.name}: lightcuts", args.no_progress) as bar:
         t0 = time.perf_counter()
         result = render_image(scene, caster, light_sets, trees, eps=cfg.render.eps, max_cut=cfg.render.max_cut,
                               progress=bar.update, **common)
@@ -76,9 +85,9 @@ def run_render(args) -> dict:
                   "diagonal": scene.diagonal},
         "lights": {typ: len(ls) for typ, ls in light_sets.items()},
         "lights_indirect": int(sum(int(ls.indirect.sum()) for ls in light_sets.values())),
-        "builder": cfg.tree.builder,
-        "metric": cfg.tree.metric,
-        "c": {typ: float(t.meta.get("c", float("nan"))) for typ, t in trees.items()},
+        "builder": used["builder"],
+        "metric": used["metric"],
+        "c": used["c"],
         "eps": cfg.render.eps,
         "max_cut": cfg.render.max_cut,
         "resolution": [int(result.image.shape[1]), int(result.image.shape[0])],
@@ -103,11 +112,11 @@ def run_render(args) -> dict:
     write_exr(out_dir / "image.exr", result.image)
     write_png(out_dir / "image.png", result.image, cfg.render.exposure)
     write_heatmap(out_dir / "cutsize.png", result.cut_size,
-                  title=f"{cfg.name}: {cfg.tree.builder}, eps {cfg.render.eps:g}, "
+                  title=f"{cfg.name}: {used['builder']}, eps {cfg.render.eps:g}, "
                         f"mean cut {report['cut_size_mean']:.0f}")
 
     if args.reference:
-        with _progress_bar(rows, f"{cfg.name}: reference", args.no_progress) as bar:
+        with progress_bar(rows, f"{cfg.name}: reference", args.no_progress) as bar:
             t0 = time.perf_counter()
             ref = render_reference(scene, caster, light_sets, progress=bar.update, **common)
             t_ref = time.perf_counter() - t0
@@ -119,7 +128,7 @@ def run_render(args) -> dict:
 
     save_json(out_dir / "report.json", report)
     line = (f"{cfg.name}: {report['resolution'][0]}x{report['resolution'][1]}, "
-            f"{sum(len(ls) for ls in light_sets.values())} lights, builder {cfg.tree.builder}: "
+            f"{sum(len(ls) for ls in light_sets.values())} lights, builder {used['builder']}: "
             f"cut {report['cut_size_mean']:.1f} avg / {report['cut_size_max']:.0f} max, "
             f"{report['shadow_rays_per_pixel']:.1f} shadow rays/pixel, "
             f"preprocess {t_pre:.2f} s, build {t_build:.2f} s, render {t_render:.2f} s")

@@ -1,0 +1,89 @@
+"""The plan step: every name a run uses resolved, and every combination checked, before any work.
+
+A command loads its config, calls :func:`plan_run` and then only calls the plan's stage methods in
+order (scene -> ray caster -> lights -> trees -> render); the stages receive resolved objects (a
+:class:`~lightcuts.trees.spec.TreeSpec`, a caster entry) and never look a name up again.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from lightcuts.accel.registry import RAY_CASTERS, make_caster
+from lightcuts.config import RunConfig
+from lightcuts.errors import LightcutsError
+from lightcuts.registry import Entry
+from lightcuts.trees.spec import TreeSpec, tree_spec
+
+
+@dataclass(frozen=True)
+class Plan:
+    """cfg : the validated config; tree : the resolved builder, metric and c; caster : the resolved
+    ray-caster entry."""
+
+    cfg: RunConfig
+    tree: TreeSpec
+    caster: Entry
+
+    def scene(self):
+        """The Scene the config describes (built-in and/or mesh files, camera applied)."""
+        from lightcuts.scene.build import scene_from_config
+
+        return scene_from_config(self.cfg)
+
+    def make_caster(self, scene):
+        """The ray caster over the scene's triangles."""
+        return make_caster(scene, self.caster)
+
+    def environment(self):
+        """The environment map (loaded or generated once per run), or None."""
+        from lightcuts.lights.generate import load_environment
+
+        return load_environment(self.cfg)
+
+    def lights(self, scene, caster=None, envmap=None) -> dict:
+        """Light sets by type, seeded by ``cfg.seed``; a caster is built if indirect lights need one."""
+        from lightcuts.lights.generate import lights_from_config
+
+        if caster is None and self.cfg.lights.indirect.count > 0:
+            caster = self.make_caster(scene)
+        if envmap is None:
+            envmap = self.environment()
+        return lights_from_config(self.cfg, scene, caster, envmap)
+
+    def trees(self, light_sets: dict) -> dict:
+        """One LightTree per light type, built by the plan's builder."""
+        from lightcuts.trees.build import build_tree
+
+        return {typ: build_tree(ls, self.tree, seed=self.cfg.seed) for typ, ls in light_sets.items()}
+
+
+def plan_run(cfg: RunConfig, *, render: bool = False, tree: TreeSpec | None = None) -> Plan:
+    """Resolve the config's builder, metric, c and ray caster; LightcutsError naming the key at fault.
+
+    render : the run renders, so the caster must be callable from the render kernels
+    tree : an already resolved TreeSpec (e.g. from command-line options) instead of the config's
+    """
+    if tree is None:
+        tree = tree_spec(cfg.tree.builder, cfg.tree.metric, cfg.tree.c)
+    lc = cfg.lights
+    # The sizes the config asks for (the particle tracer lands within a few percent of its count).
+    for n in (lc.direct.count + lc.indirect.count,
+              (lc.sun is not None) + (lc.environment.count if lc.environment is not None else 0)):
+        tree.check_size(n)
+    try:
+        caster = RAY_CASTERS.entry(cfg.render.ray_caster)
+    except LightcutsError as exc:
+        raise LightcutsError(f"render.ray_caster: {exc}") from None
+    if render and not caster.trait("kernel_callable", False):
+        usable = [e.name for e in RAY_CASTERS.entries() if e.trait("kernel_callable", False)]
+        raise LightcutsError(f"render.ray_caster: {caster.name!r} cannot be called from the render kernels; "
+                             f"use one of {', '.join(usable)}")
+    return Plan(cfg, tree, caster)
+
+
+def tree_meta(trees: dict) -> dict:
+    """What the trees were built with, from their meta: builder, metric and c (None where not read)."""
+    first = next(iter(trees.values()))
+    return {"builder": first.meta.get("builder"), "metric": first.meta.get("metric"),
+            "c": {typ: (float(t.meta["c"]) if "c" in t.meta else None) for typ, t in trees.items()}}

@@ -1,0 +1,131 @@
+r"""``lightcuts scaling CONFIG``: light-tree build time against the number of lights (the 2008 paper's Fig. 9).
+
+For every size N, the config's scene gets N indirect VPLs (``lights.indirect.count = N``, no direct
+lights, no sun or environment); every builder builds a tree over them (``build_tree``: topology plus
+bounds, cones, intensities and representatives), once to warm up numba and then ``repeats`` timed
+runs, of which the median is reported. Each builder gets only the config's metric and c that it
+reads. Outputs, written atomically to ``--out`` (default ``renders/<name>-scaling/``):
+
+- ``scaling.csv``: n_requested, n_lights, builder, median_s, min_s, repeats, depth;
+- ``scaling.png``: log-log build time against N per builder, O(N) and O(N^2) trend lines, and each
+  builder's fitted exponent in the legend.
+
+The particle tracer returns about N VPLs (its paths end by Russian roulette), so the plots use the
+actual count. Timings are wall-clock on a possibly shared machine: compare builders within a run.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from lightcuts.commands.common import add_set, progress_bar
+from lightcuts.errors import LightcutsError
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("scaling", help="build time of every builder against N (the 2008 paper's Fig. 9)")
+    p.add_argument("config")
+    p.add_argument("--sizes", default="50000,100000,200000,400000,800000", help="comma-separated light counts")
+    p.add_argument("--builders", default=None,
+                   help="comma-separated builder names (default: every builder without a size limit)")
+    p.add_argument("--repeats", type=int, default=3, help="timed runs per point (median reported)")
+    p.add_argument("--out", default=None, help="output folder (default renders/<name>-scaling)")
+    add_set(p)
+    p.set_defaults(func=run)
+
+
+def parse_sizes(text: str) -> list[int]:
+    """``"50000,100000"`` -> [50000, 100000]; LightcutsError for anything but positive integers."""
+    try:
+        sizes = [int(s) for s in str(text).replace(" ", "").split(",") if s]
+    except ValueError:
+        raise LightcutsError(f"--sizes {text!r}: expected comma-separated positive integers") from None
+    if not sizes or min(sizes) < 1:
+        raise LightcutsError(f"--sizes {text!r}: expected comma-separated positive integers")
+    return sorted(set(sizes))
+
+
+def resolve_specs(text: str | None, cfg) -> list:
+    """TreeSpecs from ``--builders`` (default: every builder without a ``max_lights`` limit), each
+    with the config's metric and c where it reads them."""
+    from lightcuts.trees.registry import BUILDERS
+    from lightcuts.trees.spec import tree_spec
+
+    if text is None:
+        names = [e.name for e in BUILDERS.entries() if e.trait("max_lights") is None]
+    else:
+        names = [b.strip() for b in text.split(",") if b.strip()]
+        if not names:
+            raise LightcutsError("--builders: no builder names given")
+    return [tree_spec(b, cfg.tree.metric, cfg.tree.c, {"builder": "--builders"}, drop_unread=True) for b in names]
+
+
+def time_builder(lights, spec, repeats: int, seed: int) -> tuple[float, float, int]:
+    """(median s, min s, depth) of ``repeats`` timed build_tree calls (the caller warms up numba)."""
+    from lightcuts.trees.build import build_tree
+
+    times = []
+    tree = None
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        tree = build_tree(lights, spec, seed=seed)
+        times.append(time.perf_counter() - t0)
+    return float(np.median(times)), float(np.min(times)), tree.depth()
+
+
+def run(args) -> int:
+    run_scaling(args)
+    return 0
+
+
+def run_scaling(args) -> list[dict]:
+    """The ``lightcuts scaling`` command (args: config, overrides, sizes, builders, repeats, out).
+
+    Returns the table rows (also written to ``scaling.csv``).
+    """
+    from lightcuts.commands.plan import plan_run
+    from lightcuts.config import load_config
+    from lightcuts.io import save_csv
+    from lightcuts.report.scaling import CSV_FIELDS, format_table, plot_scaling
+
+    sizes = parse_sizes(args.sizes)
+    repeats = int(args.repeats)
+    if repeats < 1:
+        raise LightcutsError(f"--repeats {repeats}: must be at least 1")
+    overrides = list(args.overrides or [])
+    base = overrides + ["lights.direct.count=0", "lights.sun=null", "lights.environment=null"]
+    cfg = load_config(args.config, base + [f"lights.indirect.count={sizes[0]}"])
+    specs = resolve_specs(args.builders, cfg)
+    for spec in specs:
+        spec.check_size(max(sizes), "--builders")
+    plan = plan_run(cfg, tree=specs[0])
+    out = Path(args.out) if args.out else Path("renders") / f"{cfg.name}-scaling"
+    scene = plan.scene()
+    caster = plan.make_caster(scene)
+
+    rows = []
+    warmed = set()
+    with progress_bar(len(sizes) * len(specs), "scaling", unit="tree") as bar:
+        for n in sizes:
+            plan_n = plan_run(load_config(args.config, base + [f"lights.indirect.count={n}"]), tree=specs[0])
+            bar.set_postfix_str(f"tracing {n} VPLs")
+            lights = plan_n.lights(scene, caster)["oriented"]
+            for spec in specs:
+                bar.set_postfix_str(f"N={len(lights)} {spec.name}")
+                if spec.name not in warmed:  # numba compiles (or loads its cache) on the first call
+                    time_builder(lights, spec, 1, cfg.seed)
+                    warmed.add(spec.name)
+                med, best, depth = time_builder(lights, spec, repeats, cfg.seed)
+                rows.append(dict(n_requested=n, n_lights=len(lights), builder=spec.name, median_s=med, min_s=best,
+                                 repeats=repeats, depth=depth))
+                bar.update(1)
+    save_csv(out / "scaling.csv", rows, CSV_FIELDS)
+    metric = next((s.metric.name for s in specs if s.metric is not None), None)
+    plot_scaling(out / "scaling.png", rows, f"{cfg.name}: light tree build time"
+                 f"{f' ({metric})' if metric else ''}, median of {repeats}")
+    print(format_table(rows))
+    print(f"-> {out / 'scaling.csv'}, {out / 'scaling.png'}")
+    return rows

@@ -1,0 +1,90 @@
+"""Fixtures shared by the test modules: small light sets, thread counts, scratch registries."""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+import pytest
+
+from lightcuts.lights import LightSet
+from lightcuts.parallel import num_threads
+
+#: The thread counts a determinism test compares: one, and two where the machine has them.
+MAX_THREADS = numba.config.NUMBA_NUM_THREADS
+
+
+def unit(v):
+    v = np.asarray(v, np.float64)
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def random_lights(n, light_type, seed=0, duplicates=False):
+    """n lights of one type in a unit box; duplicates: every position (and normal) appears twice."""
+    rng = np.random.default_rng(seed)
+    m = (n + 1) // 2 if duplicates else n
+    pos = rng.random((m, 3))
+    nrm = unit(rng.normal(size=(m, 3)))
+    if duplicates:
+        pos, nrm = np.repeat(pos, 2, axis=0)[:n], np.repeat(nrm, 2, axis=0)[:n]
+    if light_type == "directional":
+        pos = nrm.copy()
+    if light_type != "oriented":
+        nrm = np.zeros_like(pos)
+    return LightSet(pos, nrm, rng.random((n, 3)) * [1.0, 2.0, 0.5], light_type)
+
+
+@pytest.fixture
+def scratch_registries():
+    """Builders, metrics and ray casters registered in a test are forgotten after it."""
+    from lightcuts.accel import RAY_CASTERS
+    from lightcuts.trees import BUILDERS, METRICS
+
+    with BUILDERS.scratch(), METRICS.scratch(), RAY_CASTERS.scratch():
+        yield
+
+
+@pytest.fixture
+def thread_counts():
+    """(1, 2) and the :func:`lightcuts.parallel.num_threads` context manager; skips on one thread."""
+    if MAX_THREADS < 2:
+        pytest.skip("needs two numba threads to compare one against two")
+    return (1, 2), num_threads
+
+
+_RECORDING = """
+import json, sys
+import lightcuts.scene.build, lightcuts.lights.generate, lightcuts.trees.build
+calls = []
+def recording(module, name):
+    fn = getattr(module, name)
+    def wrapper(*args, **kwargs):
+        calls.append(name)
+        return fn(*args, **kwargs)
+    setattr(module, name, wrapper)
+recording(lightcuts.scene.build, "scene_from_config")
+recording(lightcuts.lights.generate, "lights_from_config")
+recording(lightcuts.trees.build, "build_tree")
+{setup}
+from lightcuts.cli import main
+rc = main(json.loads(sys.argv[1]))
+print(json.dumps([rc, calls]))
+"""
+
+
+def cli_recording_work(argv, cwd, setup=""):
+    """Run ``lightcuts ARGV`` in a fresh process that records whether a scene, lights or a tree were
+    made: returns (exit code, [names of the stage functions called], stderr)."""
+    import json
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import lightcuts
+
+    env = dict(os.environ, PYTHONPATH=str(Path(lightcuts.__file__).parents[1]))
+    r = subprocess.run([sys.executable, "-c", _RECORDING.replace("{setup}", setup), json.dumps(list(argv))],
+                       cwd=cwd, capture_output=True, text=True, env=env, timeout=300)
+    assert r.stdout.strip(), r.stderr
+    rc, calls = json.loads(r.stdout.strip().splitlines()[-1])
+    return rc, calls, r.stderr

@@ -1,0 +1,79 @@
+"""The package's layers: config imports no stage, stages import only the stages before them, and no
+stage imports a command. Checked on the source (every import statement, also those inside functions)
+and on what importing a module really loads."""
+
+import ast
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import lightcuts
+
+PACKAGE = Path(lightcuts.__file__).parent
+#: The stages in their order; a stage may import the ones before it.
+STAGES = ("scene", "accel", "lights", "trees", "render", "report")
+ABOVE = ("commands", "cli", "__main__")
+
+
+def imported_lightcuts_modules(path: Path) -> set[str]:
+    """The ``lightcuts.X`` top-level parts imported anywhere in one source file."""
+    out = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        names = []
+        if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            names = [node.module]
+        elif isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        out |= {n.split(".")[1] for n in names if n.startswith("lightcuts.")}
+    return out
+
+
+def layer(path: Path) -> str:
+    rel = path.relative_to(PACKAGE).with_suffix("")
+    return rel.parts[0]
+
+
+SOURCES = sorted(PACKAGE.rglob("*.py"))
+
+
+@pytest.mark.parametrize("path", SOURCES, ids=lambda p: str(p.relative_to(PACKAGE)))
+def test_imports_go_down_the_layers(path):
+    own = layer(path)
+    imported = imported_lightcuts_modules(path) - {own}
+    if own in ABOVE:
+        return
+    assert not imported & set(ABOVE), f"{own} imports a command: {sorted(imported & set(ABOVE))}"
+    if own in STAGES:
+        later = set(STAGES[STAGES.index(own) + 1:])
+        assert not imported & later, f"stage {own} imports later stages {sorted(imported & later)}"
+    else:  # config, registry and the helpers: no stage at all
+        assert not imported & set(STAGES), f"{own} imports stages {sorted(imported & set(STAGES))}"
+
+
+def test_the_scan_sees_function_level_imports(tmp_path):
+    p = tmp_path / "m.py"
+    p.write_text("def f():\n    from lightcuts.commands.plan import plan_run\n")
+    assert imported_lightcuts_modules(p) == {"commands"}
+
+
+def _loaded_after_import(module: str) -> list[str]:
+    code = f"import sys, {module}; print('\\n'.join(sorted(m for m in sys.modules if m.startswith('lightcuts'))))"
+    env = dict(os.environ, PYTHONPATH=str(PACKAGE.parent))
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
+    assert r.returncode == 0, r.stderr
+    return r.stdout.split()
+
+
+def test_config_loads_no_stage():
+    loaded = _loaded_after_import("lightcuts.config")
+    assert not [m for m in loaded if m.split(".")[1:2] and m.split(".")[1] in STAGES + ABOVE], loaded
+
+
+@pytest.mark.parametrize("module", ["lightcuts.render.integrator", "lightcuts.report.images",
+                                    "lightcuts.trees.build", "lightcuts.lights.generate", "lightcuts.accel.embree"])
+def test_stages_load_no_command(module):
+    loaded = _loaded_after_import(module)
+    assert module in loaded and not [m for m in loaded if m.startswith(("lightcuts.commands", "lightcuts.cli"))]
