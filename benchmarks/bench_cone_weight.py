@@ -45,7 +45,7 @@ from lightcuts.lights.lightset import LUMINANCE, LightSet  # noqa: E402
 from lightcuts.render.integrator import render_image, render_reference  # noqa: E402
 from lightcuts.scene.cornell import cornell_box  # noqa: E402
 from lightcuts.scene.scene import Camera  # noqa: E402
-from lightcuts.trees import build_tree, default_c, load_builtins  # noqa: E402
+from lightcuts.trees import build_tree, default_c, tree_spec  # noqa: E402
 
 FIELDS = ("builder", "c_factor", "eps", "n_lights", "pixels", "cut_size_mean", "shadow_rays_per_pixel",
           "error_mean", "error_median", "error_p99")
@@ -79,7 +79,6 @@ def main() -> None:
     caster = make_caster(scene, "embree")
     lights = LightSet.concatenate([direct_lights(scene, 1024, seed=1),
                                    indirect_lights(scene, caster, args.indirect, seed=2)])
-    load_builtins()
     c0 = default_c(lights)
     sets = {"oriented": lights}
     h = args.size // 2 - args.crop // 2
@@ -92,9 +91,9 @@ def main() -> None:
           f"{'p99':>7}")
     rows, summary = [], []
     for builder in args.builders.split(","):
-        done = {}  # the renders of a tree already seen: a builder that ignores c returns the same tree
+        done = {}  # the renders of a tree already seen: a builder that reads no c returns the same tree
         for f in factors:
-            tree = build_tree(lights, builder, "walter2008", c=c0 * f, seed=0)
+            tree = build_tree(lights, tree_spec(builder, c=c0 * f, drop_unread=True), seed=0)
             key = (tree.left.tobytes(), tree.right.tobytes(), tree.rep.tobytes())
             trees = {"oriented": tree}
             errors, cuts = [], []

@@ -49,7 +49,7 @@ from lightcuts.lights.lightset import LUMINANCE, LightSet  # noqa: E402
 from lightcuts.render.integrator import render_image, render_reference  # noqa: E402
 from lightcuts.scene.cornell import cornell_box  # noqa: E402
 from lightcuts.scene.scene import Camera  # noqa: E402
-from lightcuts.trees import BUILDERS, build_tree, load_builtins  # noqa: E402
+from lightcuts.trees import BUILDERS, build_tree  # noqa: E402
 
 FIELDS = ("case", "builder", "resolution", "n_lights", "eps", "seconds", "cpu_seconds", "runs", "cut_size_mean",
           "shadow_rays_per_pixel", "threads", "load_avg", "notes")
@@ -89,10 +89,9 @@ def main() -> None:
                                    indirect_lights(scene, caster, args.indirect, seed=2)])
     t_lights = time.perf_counter() - t0
     n = len(lights)
-    load_builtins()
     builder = "agglomerative" if "agglomerative" in BUILDERS else "divisive-6d"
     t0 = time.perf_counter()
-    tree = build_tree(lights, builder, "walter2008", seed=0)
+    tree = build_tree(lights, builder, seed=0)
     t_build = time.perf_counter() - t0
     sets, trees = {"oriented": lights}, {"oriented": tree}
     print(f"Cornell box {args.size}x{args.size}, 1 spp, {n} lights ({args.direct} direct + "
@@ -148,7 +147,7 @@ def main() -> None:
         if other == builder or other not in BUILDERS:
             continue
         t0 = time.perf_counter()
-        other_tree = build_tree(lights, other, "walter2008", seed=0)
+        other_tree = build_tree(lights, other, seed=0)
         t_other_build = time.perf_counter() - t0
         other_t = timed(lambda: render_image(scene, caster, sets, {"oriented": other_tree}, camera=camera,
                                              eps=args.eps), 1)

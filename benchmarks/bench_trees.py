@@ -36,7 +36,7 @@ from lightcuts.accel import make_caster  # noqa: E402
 from lightcuts.io import save_csv  # noqa: E402
 from lightcuts.lights.indirect import indirect_lights  # noqa: E402
 from lightcuts.scene.cornell import cornell_box  # noqa: E402
-from lightcuts.trees import BUILDERS, build_tree, default_c, get_metric, load_builtins  # noqa: E402
+from lightcuts.trees import BUILDERS, build_tree, default_c, get_metric  # noqa: E402
 
 FIELDS = ("n_lights", "builder", "first_wall_s", "total_wall_s", "total_cpu_s", "topology_wall_s", "depth", "repeats",
           "load_avg")
@@ -72,7 +72,6 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results" / "trees.csv"))
     a = ap.parse_args()
-    load_builtins()
     names = a.builders.split(",") if a.builders else [b for b in BUILDERS.names() if b != "greedy"]
     load = os.getloadavg()[0]
     print(f"load average {load:.2f}, numba threads {numba.get_num_threads()}, repeats {a.repeats}")

@@ -312,7 +312,8 @@ def test_kd_search_on_grids_and_duplicates(n, seed, grid, frac, metric_name):
 def build_clusters(position, normal, luminance, light_type, builder, metric_name, seed=0):
     intensity = np.repeat(luminance[:, None], 3, axis=1)
     lights = LightSet(position, normal, intensity, light_type)
-    tree = build_tree(lights, builder=builder, metric=metric_name, c=0.3, seed=seed)
+    c = 0.3 if get_metric(metric_name).uses_cone else None  # surface-area reads no c
+    tree = build_tree(lights, builder=builder, metric=metric_name, c=c, seed=seed)
     validate_tree(tree, lights)
     return set(tree.clusters())
 

@@ -285,7 +285,7 @@ def test_packed_node_records_bound_every_light_below_them(builder):
     rng = np.random.default_rng(5)
     for trial in range(4):
         sets = _random_light_sets(rng)
-        trees = {k: build_tree(v, builder, "walter2008", seed=trial) for k, v in sets.items()}
+        trees = {k: build_tree(v, builder, seed=trial) for k, v in sets.items()}
         forest = build_forest(sets, trees)
         k_nodes = len(forest.node_k)
         left, right, rep = forest.node_k[:, NK_LEFT], forest.node_k[:, NK_RIGHT], forest.node_k[:, NK_REP]

@@ -461,7 +461,7 @@ def test_lights_from_config_combines_sources_by_type(box, box_caster):
     cfg = _cfg({"direct": {"count": 64}, "indirect": {"count": 2000},
                 "sun": {"direction": [0, 1, 1], "irradiance": [1, 1, 1]},
                 "environment": {"procedural": {"resolution": [32, 16]}, "count": 100}})
-    sets = lights_from_config(cfg, box, box_caster)
+    sets = lights_from_config(cfg, box, box_caster, load_environment(cfg))
     assert set(sets) == {"oriented", "directional"}
     ori, dirl = sets["oriented"], sets["directional"]
     assert ori.meta["count_direct"] == 64 and ori.meta["count_indirect"] == len(ori) - 64

@@ -35,7 +35,7 @@ def cornell():
     caster = make_caster(scene, "embree")
     lights = LightSet.concatenate([direct_lights(scene, 256, seed=1), indirect_lights(scene, caster, 1800, seed=2)])
     assert 1900 < len(lights) < 2200 and lights.indirect.any() and not lights.indirect.all()
-    tree = build_tree(lights, "divisive-6d", "walter2008", seed=3)
+    tree = build_tree(lights, "divisive-6d", seed=3)
     lights, trees = {"oriented": lights}, {"oriented": tree}
     reference = render_reference(scene, caster, lights, camera=camera)
     yield scene, caster, camera, lights, trees, reference
@@ -206,7 +206,7 @@ def test_each_light_type_gives_the_analytic_radiance():
     }
     with make_caster(scene, "embree") as caster:
         for kind, (light, cos_g) in cases.items():
-            tree = build_tree(light, "divisive-6d", "walter2008", seed=0)
+            tree = build_tree(light, "divisive-6d", seed=0)
             result = render_image(scene, caster, {kind: light}, {kind: tree}, spp=4, seed=0)
             expected = ALBEDO / np.pi * i * cos_g.mean(axis=-1)[..., None]
             np.testing.assert_allclose(result.image, expected, rtol=1e-5, err_msg=kind)
@@ -237,7 +237,7 @@ def test_shadows_and_several_trees_at_once():
                              rng.uniform(0, 1, (60, 3)), "oriented", rng.random(60) < 0.5),
         "directional": sun,
     }
-    trees = {k: build_tree(v, "divisive-6d", "walter2008", seed=1) for k, v in sets.items()}
+    trees = {k: build_tree(v, "divisive-6d", seed=1) for k, v in sets.items()}
     with make_caster(scene, "embree") as caster:
         sun_only = render_reference(scene, caster, {"directional": sun})
         np.testing.assert_allclose(sun_only.image[clear], expected[clear], rtol=1e-6, atol=1e-7)
@@ -301,7 +301,7 @@ def test_bad_inputs_raise_one_line_errors(cornell):
         render_image(scene, caster, lights, trees, camera=camera, max_cut=MAX_CUT + 1)
     with pytest.raises(LightcutsError, match="no tree for the"):
         render_image(scene, caster, lights, {}, camera=camera)
-    small = build_tree(direct_lights(scene, 8, seed=0), "divisive-6d", "walter2008")
+    small = build_tree(direct_lights(scene, 8, seed=0), "divisive-6d")
     with pytest.raises(LightcutsError, match="trees.oriented"):
         render_image(scene, caster, lights, {"oriented": small}, camera=camera)
     with pytest.raises(LightcutsError, match="ray_caster"):
@@ -318,7 +318,7 @@ def test_forest_packs_every_tree_consistently():
     omni = LightSet(rng.uniform(-1, 1, (5, 3)), np.zeros((5, 3)), rng.uniform(0, 1, (5, 3)), "omni",
                     np.ones(5, bool))
     sets = {"omni": omni, "oriented": oriented}
-    trees = {k: build_tree(v, "divisive-6d", "walter2008", seed=0) for k, v in sets.items()}
+    trees = {k: build_tree(v, "divisive-6d", seed=0) for k, v in sets.items()}
     f = build_forest(sets, trees)
     assert f.light_f.shape == (n + 5, 8) and f.node_f.shape[0] == 2 * n - 1 + 2 * 5 - 1 and len(f.roots) == 2
     positions = f.light_f[:, LF_POS:LF_POS + 3]
