@@ -18,8 +18,9 @@ from lightcuts.render.bounds import (BOUND_SLACK, DIRECTIONAL, OMNI, ORIENTED, b
 from lightcuts.lights.lightset import LUMINANCE, LightSet
 from lightcuts.render.bounds import receiver_frames
 from lightcuts.errors import LightcutsError
-from lightcuts.render.cut import (LF_INDIRECT, LF_NRM, LF_POS, LF_TYPE, NB_I, NB_REP, NF_I, NK_LEFT, NK_REP, NK_RIGHT,
-                                  REP_BITS, _light_mg, build_forest, node_bound, pack_nodes)
+from lightcuts.render.cut import _light_mg, node_bound
+from lightcuts.render.forest import (LF_INDIRECT, LF_NRM, LF_POS, LF_TYPE, NB_I, NB_REP, NF_I, NK_LEFT, NK_REP,
+                                     NK_RIGHT, REP_BITS, build_forest, pack_nodes)
 from lightcuts.render.shading import facing_normal, reflect, unshadowed_contribution
 from lightcuts.trees.build import build_tree
 
@@ -292,7 +293,7 @@ def test_packed_node_records_bound_every_light_below_them(builder):
         bounds, contrib = np.empty(k_nodes), np.empty((len(forest.light_f), 3))
         inner = left >= 0
         # A record holds the summed intensity rounded to the nearest float32 (estimate and bound
-        # alike; cut.pack_nodes): the lights' sum is scaled by the same rounding.
+        # alike; lightcuts.render.forest.pack_nodes): the lights' sum is scaled by the same rounding.
         rounding = np.divide(forest.node_b[:, NB_I:NB_I + 3], forest.node_f[:, NF_I:NF_I + 3],
                              out=np.ones((k_nodes, 3)), where=forest.node_f[:, NF_I:NF_I + 3] > 0)
         checked = 0

@@ -17,8 +17,8 @@ from lightcuts.lights.indirect import indirect_lights
 from lightcuts.lights.lightset import LUMINANCE, LightSet
 from lightcuts.render import MAX_CUT
 from lightcuts.render.camera import eye_rays, strata
-from lightcuts.render.cut import (LF_INDIRECT, LF_POS, NF_HI, NF_I, NF_LO, NK_ALL_INDIRECT, NK_LEFT, NK_REP,
-                                  NK_RIGHT, build_forest)
+from lightcuts.render.forest import (LF_INDIRECT, LF_POS, NF_HI, NF_I, NF_LO, NK_ALL_INDIRECT, NK_LEFT, NK_REP,
+                                     NK_RIGHT, build_forest)
 from lightcuts.render.integrator import num_threads, render_image, render_reference
 from lightcuts.scene.cornell import cornell_box
 from lightcuts.scene.scene import Camera, Scene
@@ -116,7 +116,7 @@ class _Packets4:
 
 
 def test_packet_width_does_not_change_the_image(cornell):
-    """The cut refines the same nodes whatever the packet width (lightcuts.render.cut, "Deferred
+    """The cut refines the same nodes whatever the packet width (docs/math.md, "Deferred
     visibility"); only the order of the running total's additions differs, which could flip a stop
     test in a last-bit tie, and flips none here."""
     scene, caster, camera, lights, trees, _ = cornell

@@ -1,89 +1,20 @@
-r"""Upper bounds over a cluster's bounding box (Walter et al. 2005, section 4.1): numba device functions.
+r"""Upper bounds of a cluster's material and geometric terms at a receiver: numba device functions.
 
-A cluster C (a light-tree node) with box B = [lo, hi] over its lights' positions (directional
-lights: over their unit directions), normal cone (axis a, half-angle beta) and summed RGB intensity
-I_C has the error bound
+A cluster (a light-tree node) has a box ``[lo, hi]`` over its lights' positions (directional
+lights: over their unit directions), a normal cone (unit axis a, ``cone_cos`` = cos of its
+half-angle) and a summed RGB intensity I_C. Its error bound, per RGB channel, is
+``I_C * M_ub * G_ub * BOUND_SLACK`` (V_ub = 1), where each term is bounded for *every* light the
+box and cone can hold, not only those the tree saw. The formulas are in docs/math.md, sections
+"Error bound", "Cosine bound over a box", "Geometric bound", "Material bound", "The bound as one
+ratio" and "Clamping".
 
-    I_C * M_ub * G_ub          (V_ub = 1)
-
-which is >= M * G * V * I_j summed over every light j of C (each light's contribution is bounded by
-M_ub * G_ub * I_j). Every function here returns an upper bound of its term for *every* light that the
-box (and cone) can hold, so the bound also holds for lights the tree never saw.
-
-The box-in-a-frame trick
-------------------------
-Several terms need ``cos_ub``: an upper bound of the cosine of the angle between a unit axis ``z``
-and any vector ``v`` in an axis-aligned box ``[vlo, vhi]``. Express the box in an orthonormal frame
-``(t1, t2, z)``; the AABB ``[m, M]`` of the rotated box is, per frame axis ``u``,
-``[sum_i min(u_i vlo_i, u_i vhi_i), sum_i max(u_i vlo_i, u_i vhi_i)]`` (exactly the AABB of the 8
-rotated corners, computed without the corners). It contains the rotated box, so
-
-    cos(theta_lo) = M.z / sqrt(tx^2 + ty^2 + M.z^2)
-
-bounds the cosine from above. If ``M.z > 0``: ``tx^2 = 0`` if ``m.x <= 0 <= M.x`` else
-``min(m.x^2, M.x^2)`` (likewise ty): for a fixed z > 0 the smallest angle has the smallest
-``x^2 + y^2``, and the largest z wins. If ``M.z <= 0`` (every vector at or past 90 degrees):
-``tx^2 = max(m.x^2, M.x^2)`` (likewise ty): a negative cosine is closest to 0 for the largest
-``x^2 + y^2`` and the smallest ``|z|``. (The notes' rule returns 0 in this case; the negative value
-is tighter for cones and the same for the material bound, which clamps at 0.)
-
-Terms
------
-- distance: ``d_min^2`` = squared distance from x to B, 0 inside B (bound infinite: refine);
-- omni: ``G_ub = 1 / d_min^2``;
-- oriented: ``G_ub = cos_ub / d_min^2`` where, with ``theta_lo`` from the trick about the cone axis a
-  over the vectors ``x - y`` (y in B, the box ``[x - hi, x - lo]``), ``cos_ub = 1`` if
-  ``theta_lo <= beta``, else ``cos(theta_lo - beta)``; a full-sphere cone (``cone_cos <= -1``) gives 1;
-- directional: ``G = 1``; the box holds the directions wi themselves;
-- material ``M = f_r(wi, wo) * max(0, N . wi)``: ``M_ub = f_ub * cos_ub(N)`` with ``cos_ub(N)`` from
-  the trick about N over the vectors wi can take (``[lo - x, hi - x]`` for positional lights, B itself
-  for directional ones), 0 when it is <= 0. Lambert: ``f = rho_d / pi``; energy-normalised Phong (the
-  2005 paper's glossy model): ``f = rho_d / pi + rho_s (n + 2) / (2 pi) max(0, R . wi)^n`` with
-  ``R = reflect(wo, N)``, so ``f_ub`` uses ``cos_ub(R)`` (the trick about R) clamped to [0, 1].
-
-Clamping of indirect VPLs
--------------------------
-Indirect lights use ``G`` with ``max(d^2, r_c^2)`` in place of ``d^2`` (``r_c = min_distance *
-scene diagonal``), in the estimate and in the bound alike. A cluster's bound uses the clamped
-distance only when *every* light below it is indirect (``all_indirect``, precomputed per node): a
-cluster that mixes direct and indirect lights keeps ``1 / d_min^2``, which bounds both kinds.
-
-Evaluation (cost)
------------------
-The lightcut evaluates two bounds per refined node, so the arithmetic is arranged for a short
-dependency chain rather than for reading like the formulas:
-
-- ratios: :func:`cluster_error_bound_framed` gets the material bound as ``f * m / sqrt(qm)`` and the
-  geometric one as ``num / (sqrt(qg) d^2)`` (``cos(theta_lo - beta) = (m cos(beta) + sqrt(t2)
-  sin(beta)) / q`` with ``m``, ``t2`` from the trick and ``q = sqrt(t2 + m^2)``), then takes one
-  square root, ``sqrt(qm qg)``, and divides once; ``sqrt(t2) sin(beta)`` is one root too,
-  ``sqrt(t2 (1 - cos^2 beta))``. A chain of four divisions and square roots became two roots and
-  one division: square roots and divisions share the processor's divider, and the merged roots
-  alone took 3-5% off the whole render (same-process A/B, images identical). The values differ
-  from the composed form by rounding only (far below ``BOUND_SLACK``);
-- the cone's frame: the node records store the cone axis's :func:`frame_coefficient`, the one
-  division of :func:`orthonormal_frame` (1.2-1.4% of the render);
-- no unpredictable branches: the distance to the box, the trick's ``tx^2`` / ``ty^2`` and the
-  cone's ``theta_lo <= beta`` test (squared, so that no root precedes it) are computed as
-  selects; branches remain only where they skip work (every wi below the horizon, a leaf);
-- every device function is ``forceinline`` (LLVM ``alwaysinline``): LLVM's own heuristics kept
-  each of them a call with 15-40 scalar arguments passed through the stack, and a call cannot
-  share work or overlap with its neighbours. Measured with the lightcut (Cornell box, 10^5 lights,
-  one thread): about 20% less time from inlining alone;
-- LLVM's SLP vectorizer (on for lightcuts' processes: ``lightcuts/__init__.py``) computes pairs of
-  the same operation as one two-lane instruction: the products and minima of :func:`_extent`, the
-  gaps of :func:`box_distance2`. The whole Cornell-box render took 8-11% less time, every value
-  the same bit for bit. Tried on top of it without a gain: the two children's bounds as one
-  branch-free block (per-cluster branches as selects, light type and glossiness as constants at
-  the call site), so that the vectorizer would give a lane to each child: more instructions were
-  vectorised, but mostly within a child (square roots and divisions stayed scalar), and the render
-  time did not change (same-process A/B 0.999, images identical).
-
-Device functions take scalars (x0, x1, x2 for a vector x): array views passed to numba functions
-that LLVM does not inline cost a reference-count update each, a measured 3-4x slowdown here.
-
-Rounding: every bound is multiplied by ``BOUND_SLACK`` (1 + 1e-9) so that a light sitting exactly on
-the bound's extreme (a box corner, the cone's edge) cannot exceed it by a rounding error.
+The lightcut evaluates two bounds per refined node, so :func:`cluster_error_bound_framed` is
+arranged for a short chain of dependent operations rather than to read like the formulas: ratios
+with one square root and one division, selects instead of unpredictable branches, the receiver's
+frames and the cone's frame coefficient computed once, ``forceinline`` everywhere, scalar arguments
+(x0, x1, x2 for a vector x) (docs/performance.md, "Renderer"). The plain forms
+(:func:`material_bound`, :func:`geometric_bound`, :func:`cluster_error_bound`) compute the same
+bounds for tests and callers outside the kernel.
 """
 
 from __future__ import annotations
@@ -123,7 +54,7 @@ def orthonormal_frame(z0, z1, z2):
 @njit(cache=True, error_model="numpy", forceinline=True)
 def frame_coefficient(z0, z1, z2):
     """The one division of :func:`orthonormal_frame`, ``-1 / (sign(z2) + z2)`` (in [-1, -1/2]): the
-    light tree's records store it per node (lightcuts.render.cut.pack_nodes), which takes it off the
+    light tree's records store it per node (lightcuts.render.forest.pack_nodes), which takes it off the
     cone bound's chain of dependent operations."""
     return -1.0 / ((1.0 if z2 >= 0.0 else -1.0) + z2)
 
@@ -149,7 +80,7 @@ def _extent(u0, u1, u2, lo0, lo1, lo2, hi0, hi1, hi2):
 def max_cos_in_box(z0, z1, z2, lo0, lo1, lo2, hi0, hi1, hi2):
     """Upper bound of cos(angle(z, v)) over all non-zero v in the box [lo, hi], in [-1, 1]; z is unit.
 
-    <= 0 means every v is at least 90 degrees from z (see the module docstring for the method).
+    <= 0 means every v is at least 90 degrees from z (docs/math.md, "Cosine bound over a box").
     """
     t1, t2 = orthonormal_frame(z0, z1, z2)
     return max_cos_in_frame(z0, z1, z2, t1[0], t1[1], t1[2], t2[0], t2[1], t2[2], lo0, lo1, lo2, hi0, hi1, hi2)
@@ -157,8 +88,8 @@ def max_cos_in_box(z0, z1, z2, lo0, lo1, lo2, hi0, hi1, hi2):
 
 @njit(cache=True, error_model="numpy", forceinline=True)
 def _frame_cos(z0, z1, z2, u0, u1, u2, v0, v1, v2, lo0, lo1, lo2, hi0, hi1, hi2):
-    """``(m, t2)`` of the box-in-a-frame trick: ``m = M.z``, ``t2 = tx^2 + ty^2`` (module docstring), so
-    that the cosine bound is ``m / sqrt(t2 + m^2)`` and its sine ``sqrt(t2) / sqrt(t2 + m^2)``."""
+    """``(m, t2)`` of the cosine bound over a box: ``m = M.z``, ``t2 = tx^2 + ty^2`` (docs/math.md, "Cosine
+    bound over a box"), so that the bound is ``m / sqrt(t2 + m^2)`` and its sine ``sqrt(t2) / sqrt(t2 + m^2)``."""
     _, m = _extent(z0, z1, z2, lo0, lo1, lo2, hi0, hi1, hi2)
     mx_lo, mx_hi = _extent(u0, u1, u2, lo0, lo1, lo2, hi0, hi1, hi2)
     my_lo, my_hi = _extent(v0, v1, v2, lo0, lo1, lo2, hi0, hi1, hi2)
@@ -184,7 +115,7 @@ def _cone_ratio(x0, x1, x2, lo0, lo1, lo2, hi0, hi1, hi2, a0, a1, a2, cone_cos, 
     """:func:`cone_cos_bound` as ``(num, qq)``, bound = num / sqrt(qq) with qq > 0 and num >= 0 (not
     clamped at 1): the caller folds the root into the cluster bound's single root and division.
     cone_fa : the axis's :func:`frame_coefficient` (a frame that is orthonormal up to float32
-    rounding of it is covered by the records' widened cones, lightcuts.render.cut.CONE_WIDEN).
+    rounding of it is covered by the records' widened cones, lightcuts.render.forest.CONE_WIDEN).
 
     With ``c_lo = m / q`` (``q = sqrt(t2 + m^2)``, :func:`_frame_cos` about the axis over the vectors
     x - y) and ``sin(theta_lo) = sqrt(t2) / q``, ``cos(theta_lo - beta) = (m cos(beta) + sqrt(t2)
@@ -332,8 +263,8 @@ def cluster_error_bound_framed(x0, x1, x2, n0, n1, n2, r0, r1, r2, fr, rd0, rd1,
 
     ``I f m / sqrt(qm) * num / (sqrt(qg) d2)``: the material and geometric bounds as ratios
     (:func:`_material_ratio`, :func:`_geometric_ratio`), so that one division and one square root,
-    ``sqrt(qm qg)``, remain on the path from the box to the bound (they were a chain of four divisions
-    and roots). qm and qg are squared lengths of float32-bounded boxes, so their product stays far
+    ``sqrt(qm qg)``, remain on the path from the box to the bound (docs/math.md, "The bound as one
+    ratio"). qm and qg are squared lengths of float32-bounded boxes, so their product stays far
     from overflow.
     """
     f0, f1, f2, m, qm = _material_ratio(x0, x1, x2, n0, n1, n2, r0, r1, r2, fr, rd0, rd1, rd2, rs0, rs1, rs2,

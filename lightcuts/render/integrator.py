@@ -1,37 +1,29 @@
 r"""Rendering an image with lightcuts (or the brute-force reference): one numba kernel over pixels.
 
-Per eye ray (lightcuts.render.camera: ``spp`` stratified jittered samples per pixel):
+Per eye ray (lightcuts.render.camera: ``spp`` stratified jittered samples per pixel): a miss shows
+the environment map's radiance (black without one); the front of an emitter shows its emitted
+radiance plus the light it reflects, its back is black (emitters are one-sided and absorb, as in
+lightcuts.lights.indirect); any other hit is shaded by a lightcut through all trees
+(lightcuts.render.cut) or, for the reference, by every light (lightcuts.render.reference); surfaces
+are two-sided. The trees and lights are flattened into one forest
+(lightcuts.render.forest.build_forest), so one kernel specialisation serves every light type and the
+reference.
 
-- a miss shows the environment map's radiance (black without one);
-- the front side of an emitter shows its emitted radiance plus the light it reflects; its back side
-  is black (emitters are one-sided and their back absorbs, as in lightcuts.lights.indirect);
-- any other hit is shaded by a lightcut through all light trees (lightcuts.render.cut), or, for the
-  reference, by every light (lightcuts.render.reference). Surfaces are two-sided.
+Shadow rays start ``ray_offset`` (:func:`shadow_ray_offset`, world units) off the surface along the
+shading normal (on the light's side) and stop as far short of a light at a point (lights sit on
+surfaces); rays to directional lights are unbounded. Clamping (``clamp=True``) applies to indirect
+VPLs in the estimate and the bound alike (docs/math.md, "Clamping").
 
-Shadow rays start ``ray_offset`` (:func:`shadow_ray_offset`) off the surface along the shading
-normal (on the light's side) and stop the same distance short of a light at a point (lights sit on
-surfaces); shadow rays to directional lights go to infinity. Clamping (``clamp=True``) gives indirect
-VPLs the geometric term with ``max(d^2, (clamp_min_distance * scene diagonal)^2)``, in the estimate
-and the bound alike (lightcuts.render.bounds).
-
-The kernel runs on every numba thread over chunks of pixels in bands of rows (a Python loop over
-bands drives ``progress``), each thread taking the next chunk when it is done with one (an atomic
-counter: pixels differ in cost, and the cores are shared with other work); every pixel is computed
-by one thread from its own counters and written to its own output cells (no shared float
-accumulator), so images do not depend on the thread count or the scheduling. The kernel is a
-``nogil`` function on lightcuts.parallel's threads rather than a ``parallel=True`` one: on a cold
-numba cache the kernel itself compiled in 1.3 s instead of 6.3 s, and the first render of a small
-image took 14 s instead of 24 s; renders are as fast or a little faster (scratch once per thread
-instead of once per chunk; Cornell box 512 x 512: 10.9-11.7 s against 11.5-12.0 s, alternating
-runs).
-
-All light types share one kernel specialisation: the trees are flattened into one forest with
-global node and light ids (lightcuts.render.cut.build_forest; absent types contribute no root), and
-the reference runs the same kernel without trees.
+The kernel is ``nogil`` and runs on lightcuts.parallel's threads over bands of rows (a Python loop
+over bands drives ``progress``), each thread taking the next chunk of pixels from an atomic counter
+(pixels differ in cost, and the cores are shared), rather than a ``parallel=True`` kernel, which
+compiles several times slower on a cold cache (docs/performance.md, "Renderer"). Every pixel is
+computed by one thread and written to its own cells, so images do not depend on the thread count or
+the scheduling.
 
 numba caches each module's kernels keyed on that module's source file only: after editing bounds,
-shading, cut, reference or camera, delete ``lightcuts/render/__pycache__/*.nb[ic]`` (or touch this
-file), or a cached kernel built from the old code may still run.
+shading, forest, heap, cut, reference or camera, delete ``lightcuts/render/__pycache__/*.nb[ic]``
+(or touch this file), or a cached kernel built from the old code may still run.
 """
 
 from __future__ import annotations
@@ -53,7 +45,8 @@ from lightcuts.lights.lightset import LUMINANCE
 from lightcuts.parallel import next_task, on_counter
 from lightcuts.render import MAX_CUT
 from lightcuts.render.camera import CAM_POSITION, camera_params, check_crop, eye_ray, strata
-from lightcuts.render.cut import build_forest, lightcut
+from lightcuts.render.cut import lightcut
+from lightcuts.render.forest import build_forest
 from lightcuts.render.reference import all_lights
 from lightcuts.render.shading import facing_normal, reflect
 

@@ -1,30 +1,13 @@
 r"""Exact shading of one light at one receiver: numba device functions (also callable from Python).
 
-A light j's contribution at the receiver x seen from direction wo (Walter et al. 2005, section 3) is
-
-    M(x, wi, wo) * G(x, y_j) * V(x, y_j) * I_j,      M = f_r(wi, wo) * max(0, N . wi),
-
-per RGB channel (M carries the RGB reflectance, I_j the RGB intensity; G and V are scalars).
-
-BRDF: Lambert plus energy-normalised Phong (the 2005 paper's glossy model),
-
-    f_r = rho_d / pi + rho_s (n + 2) / (2 pi) max(0, R . wi)^n,     R = reflect(wo, N) = 2 (N . wo) N - wo,
-
-which reflects at most rho_d + rho_s of the incident energy. Surfaces are two-sided: the shading
-normal N is the geometric normal turned towards the viewer (:func:`facing_normal`). Emitters are
-one-sided (their front side is the right-hand-rule normal).
-
-Geometric term G by light type (lightcuts.lights.lightset):
-
-- omni: ``1 / d^2``;
-- oriented: ``max(0, n_l . (x - y) / d) / d^2``;
-- directional: 1 (``position`` holds the unit direction towards the light; shadow ray to infinity).
-
-Clamping: an indirect VPL uses ``max(d^2, clamp_d2)`` for ``d^2``; callers pass ``clamp_d2 = 0`` for
-lights that are not clamped. lightcuts.render.bounds applies the same clamp to the bounds.
-
-Device functions take scalars (``x0, x1, x2`` for a vector x; ``rd``, ``rs`` the RGB reflectances),
-like lightcuts.render.bounds.
+A light's contribution is ``M G V I`` per RGB channel, with ``M = f_r(wi, wo) max(0, N . wi)``
+(Lambert plus energy-normalised Phong) and G by light type; clamped indirect VPLs use
+``max(d^2, clamp_d2)`` for ``d^2`` (callers pass ``clamp_d2 = 0`` for a light that is not clamped):
+docs/math.md, "Light contribution" and "Clamping". Surfaces are two-sided (:func:`facing_normal`
+turns the normal N towards the viewer); emitters are one-sided. lightcuts.render.bounds bounds the
+same terms over a cluster, and the lightcut and the reference both shade with these functions, so
+their images differ only by the cut. Arguments are scalars (``x0, x1, x2`` for a vector x; ``rd``,
+``rs`` the RGB reflectances), as in lightcuts.render.bounds.
 """
 
 from __future__ import annotations
