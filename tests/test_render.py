@@ -19,7 +19,7 @@ from lightcuts.render import MAX_CUT
 from lightcuts.render.camera import eye_rays, strata
 from lightcuts.render.forest import (LF_INDIRECT, LF_POS, NF_HI, NF_I, NF_LO, NK_ALL_INDIRECT, NK_LEFT, NK_REP,
                                      NK_RIGHT, build_forest)
-from lightcuts.render.integrator import num_threads, render_image, render_reference
+from lightcuts.render.integrator import render_image, render_reference
 from lightcuts.scene.cornell import cornell_box
 from lightcuts.scene.scene import Camera, Scene
 from lightcuts.trees.build import build_tree
@@ -85,12 +85,13 @@ def test_eps_zero_evaluates_every_light_and_equals_the_reference(cornell):
     assert result.clamped_energy == pytest.approx(reference.clamped_energy, rel=1e-6)
 
 
-def test_same_inputs_give_identical_bytes_on_any_thread_count(cornell):
+def test_same_inputs_give_identical_bytes_on_any_thread_count(cornell, thread_counts):
     scene, caster, camera, lights, trees, _ = cornell
+    (n1, n2), num_threads = thread_counts
     kwargs = dict(camera=camera, spp=2, seed=7)
-    with num_threads(1):
+    with num_threads(n1):
         one = render_image(scene, caster, lights, trees, **kwargs)
-    with num_threads(2):
+    with num_threads(n2):
         two = render_image(scene, caster, lights, trees, **kwargs)
     again = render_image(scene, caster, lights, trees, **kwargs)
     assert one.image.tobytes() == two.image.tobytes() == again.image.tobytes()

@@ -28,13 +28,11 @@ shading, forest, heap, cut, reference or camera, delete ``lightcuts/render/__pyc
 
 from __future__ import annotations
 
-import contextlib
 import math
 import time
 from dataclasses import dataclass, field
 from typing import Callable
 
-import numba
 import numpy as np
 from numba import njit
 
@@ -303,13 +301,3 @@ def render_reference(scene, caster, lights: dict, camera=None, spp: int = 1, cla
     return _render(scene, caster, lights, None, camera, spp, 0.0, 1, clamp, clamp_min_distance, envmap, seed,
                    crop, progress, True, visibility)
 
-
-@contextlib.contextmanager
-def num_threads(n: int):
-    """Run numba kernels on ``n`` threads inside the block; the previous count is restored after."""
-    old = numba.get_num_threads()
-    numba.set_num_threads(n)
-    try:
-        yield
-    finally:
-        numba.set_num_threads(old)
