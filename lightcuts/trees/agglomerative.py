@@ -77,9 +77,12 @@ from numba import njit
 
 from lightcuts.errors import LightcutsError
 from lightcuts.parallel import on_counter, on_threads
-from lightcuts.trees.kdtree import (KD_SUBTREES, LEAF_SIZE, kd_best_match, kd_build, kd_build_threaded,
-                                    kd_group_by_leaf, kd_merge, kd_merge_batch, kd_merge_batch_finish, kd_new,
-                                    kd_search_range, kd_subtree_starts, kd_wants_rebuild)
+from lightcuts.trees.bounds import points_box
+from lightcuts.trees.kd_build import kd_build, kd_build_threaded, kd_new
+from lightcuts.trees.kd_merge import (kd_merge, kd_merge_batch, kd_merge_batch_finish, kd_subtree_starts,
+                                      kd_wants_rebuild)
+from lightcuts.trees.kd_search import kd_best_match, kd_group_by_leaf, kd_search_range
+from lightcuts.trees.kd_tree import KD_SUBTREES, LEAF_SIZE
 from lightcuts.trees.metrics import Metric
 from lightcuts.trees.registry import BUILDERS
 
@@ -199,7 +202,7 @@ def _pair_round(kd, todo, n_todo, todo_next, best, best_d, head, nxt, left, righ
     k = left.shape[0]
     new = counters[C_NEXT]
     n_pairs = 0
-    slot_of = kd[2]
+    slot_of = kd.slot_of
     starts = kd_subtree_starts(kd)
     counters[C_SEARCHES] += n_todo
     counters[C_ROUNDS] += 1
@@ -285,7 +288,7 @@ def _locally_ordered(position, normal, luminance, order, metric_id, has_cone, us
         position, normal, luminance, order, leafsize)
     kd_build_threaded(kd, work)
     # The first round searches the clusters in slot (kd-leaf) order, for locality.
-    todo[:] = kd[1]
+    todo[:] = kd.slot_id
     n_todo = n
     while counters[C_NEXT] < left.shape[0]:
         on_counter(kd_search_range, n_todo, parallel_min, kd, todo, n_todo, best, best_d, metric_id, has_cone,
@@ -314,7 +317,7 @@ def _agglomerate_heap(position, normal, luminance, order, metric_id, has_cone, u
         return left, right, light, stats
     kd, work = kd_new(position, normal, luminance, order, leafsize)
     kd_build(kd, work)
-    slot_of = kd[2]
+    slot_of = kd.slot_of
     new = np.int64(n)
     # Live entries never exceed the active clusters: each pop pushes at most one entry.
     hd = np.empty(n)
@@ -323,7 +326,7 @@ def _agglomerate_heap(position, normal, luminance, order, metric_id, has_cone, u
     size = np.int64(0)
     # In slot order (kd-leaf order) for memory locality; the tree does not change in this loop, so
     # the order does not change the result.
-    slot_id = kd[1]
+    slot_id = kd.slot_id
     for s in range(n):
         i = np.int64(slot_id[s])
         b, d = kd_best_match(kd, i, metric_id, has_cone, use_cone, c)
@@ -381,17 +384,13 @@ def _morton_keys(position, bits, index_bits):
     """(N,) uint64 keys: the Morton code of each position quantised to ``bits`` bits per axis over the
     bounding box, shifted left by ``index_bits``, or-ed with the light's index (unique keys)."""
     n = position.shape[0]
+    box_lo, box_hi = points_box(position, 0, n)
     lo = np.empty(3)
     scale = np.empty(3)
     top = np.float64((1 << bits) - 1)
     for t in range(3):
-        vmin = np.inf
-        vmax = -np.inf
-        for i in range(n):
-            vmin = min(vmin, position[i, t])
-            vmax = max(vmax, position[i, t])
-        lo[t] = vmin
-        scale[t] = top / (vmax - vmin) if vmax > vmin else 0.0
+        lo[t] = box_lo[t]
+        scale[t] = top / (box_hi[t] - box_lo[t]) if box_hi[t] > box_lo[t] else 0.0
     keys = np.empty(n, np.uint64)
     for i in range(n):
         code = np.uint64(0)
