@@ -29,10 +29,12 @@ from lightcuts.trees.agglomerative import agglomerative, agglomerative_stats
 from lightcuts.trees.build import build_tree
 from lightcuts.trees.cones import cone_from_box
 from lightcuts.parallel import on_threads
-from lightcuts.trees.kdtree import (KD_SUBTREES, N_AXIS, N_EMIN, N_HMIN, N_IMIN, N_LMAX, N_SPLIT, NE_MIN, NH_MIN,
-                                    NL_MAX, S_HI, S_I, S_LO, S_NHI, S_NLO, SLOT_DATA, best_matches_after_merges,
-                                    kd_build, kd_build_threaded, kd_merge, kd_merge_batch, kd_merge_batch_finish,
-                                    kd_new, kd_subtree, kd_wants_rebuild)
+from lightcuts.trees.kd_build import kd_build, kd_build_threaded, kd_new
+from lightcuts.trees.kd_merge import kd_merge, kd_merge_batch, kd_merge_batch_finish, kd_subtree, kd_wants_rebuild
+from lightcuts.trees.kd_search import best_matches_after_merges
+from lightcuts.trees.kd_tree import (I_ACTIVE, I_BUILT, I_FIRST_LEAF, KD_SUBTREES, N_AXIS, N_EMIN, N_HMIN, N_IMIN,
+                                     N_LMAX, N_SPLIT, NE_MIN, NH_MIN, NL_MAX, S_HI, S_I, S_LO, S_NHI, S_NLO, SLOT_DATA,
+                                     KdTree)
 from lightcuts.trees.metrics import Metric, metric_eval
 from lightcuts.trees.registry import get_metric
 from lightcuts.trees.validate import validate_tree
@@ -130,9 +132,10 @@ def check_against_brute_force(position, normal, luminance, light_type, metric_na
 
 def check_kd_tree(kd, clusters):
     """The kd-tree's storage and bounds against the active clusters (dicts of clusters_after)."""
-    slot_f, slot_id, slot_of, slot_leaf, node_s, node_n, node_cnt, leaf_start, info = kd[:9]
+    slot_f, slot_id, slot_of, slot_leaf = kd.slot_f, kd.slot_id, kd.slot_of, kd.slot_leaf
+    node_s, node_n, node_cnt, leaf_start, info = kd.node_s, kd.node_n, kd.node_cnt, kd.leaf_start, kd.info
     lo, hi, nlo, nhi, inten = clusters
-    first_leaf = int(info[0])
+    first_leaf = int(info[I_FIRST_LEAF])
     seen = []
     # The arrays keep the size of the first build; a rebuild over fewer clusters uses a prefix.
     for j in range(first_leaf + 1):
@@ -161,7 +164,7 @@ def check_kd_tree(kd, clusters):
                 if k == 0:
                     break
                 k = (k - 1) // 2
-    assert sorted(seen) == sorted(inten) and int(info[3]) == len(seen)
+    assert sorted(seen) == sorted(inten) and int(info[I_ACTIVE]) == len(seen)
     for k in range(first_leaf):
         assert node_cnt[k] == node_cnt[2 * k + 1] + node_cnt[2 * k + 2]
 
@@ -202,9 +205,9 @@ def test_kd_merge_batches_on_threads():
     kinds = set()
     while len(merges) < n - 10:
         kd = trees[0][0]
-        active = np.flatnonzero(kd[2] >= 0)
+        active = np.flatnonzero(kd.slot_of >= 0)
         # Neighbours in slot order (mostly one subtree), and a few random pairs (mostly not).
-        active = active[np.argsort(kd[2][active])]
+        active = active[np.argsort(kd.slot_of[active])]
         near = active[:len(active) // 2 // 2 * 2].reshape(-1, 2)
         far = rng.permutation(active[len(near) * 2:])
         far = far[:min(len(far) // 2, 20) * 2].reshape(-1, 2)
@@ -221,10 +224,9 @@ def test_kd_merge_batches_on_threads():
         merges += [tuple(p) for p in pairs]
         check_kd_tree(trees[0][0], clusters_after(*lights, merges))
         # Merges write slots and counts only (not the node bounds).
-        for name, a, b in zip(KD_FIELDS, trees[0][0], trees[1][0]):
-            if name in ("slot_id", "slot_of", "slot_leaf", "node_cnt", "leaf_start", "info"):
-                np.testing.assert_array_equal(a, b, err_msg=name)
-        np.testing.assert_array_equal(trees[0][0][0][:, :SLOT_DATA], trees[1][0][0][:, :SLOT_DATA])
+        for name in ("slot_id", "slot_of", "slot_leaf", "node_cnt", "leaf_start", "info"):
+            np.testing.assert_array_equal(getattr(trees[0][0], name), getattr(trees[1][0], name), err_msg=name)
+        np.testing.assert_array_equal(trees[0][0].slot_f[:, :SLOT_DATA], trees[1][0].slot_f[:, :SLOT_DATA])
         for kd, work in trees:
             if kd_wants_rebuild(kd):
                 kd_build(kd, work)
@@ -247,16 +249,18 @@ def test_kd_rebuild_on_threads_is_the_serial_rebuild():
             kd_build_threaded(kd, work, parallel_min=0)
         else:
             kd_build(kd, work)
-        internal = int(kd[8][0])
+        internal = int(kd.info[I_FIRST_LEAF])
         for m, (a, b) in enumerate(merges):
             kd_merge(kd, work, a, b, n + m, not threaded)
             if threaded and kd_wants_rebuild(kd):
                 kd_build_threaded(kd, work, parallel_min=0)
-        assert kd[8][1] < n  # rebuilt since the first build
+        assert kd.info[I_BUILT] < n  # rebuilt since the first build
         trees.append(kd)
     # Every written value: not the traversal scratch, the padding columns of the rows, nor the split
     # columns of nodes that were never internal.
-    for name, serial, threaded in zip(KD_FIELDS, *trees):
+    assert KdTree._fields == KD_FIELDS
+    for name in KD_FIELDS:
+        serial, threaded = (getattr(kd, name) for kd in trees)
         if name == "slot_f":
             serial, threaded = serial[:, :SLOT_DATA], threaded[:, :SLOT_DATA]
         elif name == "node_s":

@@ -4,15 +4,13 @@ Rendering", IEEE Symposium on Interactive Ray Tracing 2008): ``agglomerative`` a
 
 Both merge, bottom-up, pairs of clusters that are each other's best match under a metric d(A u B)
 (:mod:`lightcuts.trees.metrics`), finding best matches with the kd-tree of
-:mod:`lightcuts.trees.kdtree`. With a non-decreasing metric (eq. 1 of the paper: d(A u B) <=
-d(A u C u B); true for omni and directional lights and for the surface-area metric) both build the
-greedy tree (Fig. 2), up to ties. With box-of-normals cones the metric is not monotone (see
-:mod:`lightcuts.trees.cones`): the builders still terminate and return a valid tree, which may
-differ from the greedy one in a few clusters (``benchmarks/bench_agglomerative.py`` measures how
-many).
+:mod:`lightcuts.trees.kd_tree`. With a non-decreasing metric (the paper's eq. 1) both build the
+greedy tree (Fig. 2) up to ties; with box-of-normals cones the metric is not monotone, and the tree
+may differ from the greedy one in a few clusters (docs/math-trees.md, "Non-decreasing metrics";
+``benchmarks/bench_agglomerative.py`` measures how many).
 
 ``agglomerative`` -- locally-ordered clustering (Fig. 4: merge A and B as soon as each is the
-other's best match, in any order), run in rounds so that its searches can share the cores::
+other's best match), run in rounds so that its searches can share the cores::
 
     search best(A) for every cluster
     while more than one cluster:
@@ -20,54 +18,29 @@ other's best match, in any order), run in rounds so that its searches can share 
             merge(A, B)
         search best(X) for each new cluster X, and each X whose best match was merged
 
-The searches of a round only read the kd-tree and each writes its own cluster's answer, so they run
-on the numba threads (rounds of at least ``PARALLEL_MIN`` searches; each thread takes chunks of
-``SEARCH_CHUNK`` clusters from a shared counter, so that a thread on a slower core does not hold up
-the round: 1-2% less build time than one half-range per thread in same-process A/B runs) and the
-tree does not depend on the thread count. Each round's clusters are ordered by kd leaf, and the
-clusters of a leaf are searched together (:func:`~lightcuts.trees.kdtree.kd_search_range`),
-sharing their node bounds (40% less search time than one search per cluster). The pairs are chosen
-on one thread, in a fixed order, which numbers the nodes; the kd-tree then merges them, those
-within one of the subtrees below its top levels on the threads
-(:func:`~lightcuts.trees.kdtree.kd_merge_batch`), the others after them.
+Why these rounds build Fig. 4's tree: docs/math-trees.md, "Rounds of mutual best matches". A
+round's searches only read the kd-tree and each writes its own cluster's answer, so they run on the
+numba threads, the clusters of one kd leaf together
+(:func:`~lightcuts.trees.kd_search.kd_search_range`); the pairs are chosen on one thread in a fixed
+order, which numbers the nodes; the kd-tree merges them, those within one subtree below its top
+levels on the threads (:func:`~lightcuts.trees.kd_merge.kd_merge_batch`). The tree does not depend
+on the thread count. Each cluster keeps a list of the clusters whose best match it is, so a merge
+finds whom to search again without a scan.
 
-Why it is Fig. 4: a pair is merged only when neither has a better partner (B's best d is no smaller
-than d(A u B)), the condition under which Fig. 4's chain merges; with a non-decreasing metric such
-pairs are exactly the ones the greedy Fig. 2 merges, in another order (a cluster made later cannot
-come closer to A than A's partner was), so the tree is the greedy one up to ties. The tie rule
-makes every round merge: the pair with the smallest d over all clusters passes it. Only pairs with
-a cluster searched in the round are checked, since any other pair was checked with the same values
-when the later of its two was searched; each cluster keeps a list of the clusters whose best match
-it is, so a merge finds whom to search again without a scan.
+``agglomerative-heap`` -- the heap-based version (Fig. 3), on one thread as in the paper: every
+cluster's best match in a binary min-heap keyed on (d, cluster id); pop the smallest; skip it if its
+cluster was merged away; search again and push it if its partner was; merge otherwise and push the
+new cluster's best match.
 
-With box-of-normals cones, as with the heap version, a cluster's best match is searched again only
-when its partner is merged away, so a cluster made meanwhile may beat a kept partner; Fig. 4's
-chain asks afresh at each step. ``benchmarks/bench_agglomerative.py`` measures how often the
-builders disagree.
-
-``agglomerative-heap`` -- the heap-based version (Fig. 3): every cluster's best match in a binary
-min-heap keyed on (d, cluster id); pop the smallest; skip it if its cluster was merged away;
-recompute and push it again if its partner was; merge otherwise and push the new cluster's best
-match.
-
-Locality: indirect VPLs arrive in path order, scattered in space, so per-cluster arrays indexed by
-light id would be read at random. The kernel runs on the lights sorted along a Morton (Z-order)
-curve of their positions (:func:`morton_order`), where nearby clusters have nearby ids (about 5%
-faster at 200K Cornell VPLs, 12% at 800K); the kd-tree reads the lights through that permutation and
-the kernel relabels the leaves to light ids at the end. Only the ids among tied clusters depend on
-the order, as with any relabelling.
-
-Work (200K Cornell VPLs, oriented, walter2008): 3.48 kd-tree searches per merge (one per light at
-the start, one per new cluster, 1.48 for clusters whose partner was merged) in 60 rounds; the
-heap version makes 3.41. The searches take about 65% of the CPU time, choosing and merging the
-pairs 15%, the kd-tree (re)builds 15%. No call inside a per-cluster or per-pair loop takes the
-kd-tree tuple: numba updates the reference count of every array a call receives (two atomic
-operations per array, 24 for the tuple, contended when both threads do it), which was half the
-time of the pair rounds and a third of the merges'. Choosing pairs counts kd subtrees inline, a
-round's merges and a thread's share of the searches are one call each: 10-15% less build time.
+Both kernels run on the lights sorted along a Morton curve of their positions
+(:func:`morton_order`), so that clusters near each other in space have nearby ids and the
+per-cluster arrays stay in cache; the leaves are relabelled to light ids at the end. Only the ids
+among tied clusters depend on that order. No call inside a per-cluster or per-pair loop takes the
+KdTree: each would cost an atomic reference-count update per array (docs/performance-trees.md,
+"Reference counting").
 
 Node ids of the returned topology: leaves 0..N-1 are lights 0..N-1, merge m makes node N + m, the
-root is 2N - 2. The heap version runs on one thread, as in the paper.
+root is 2N - 2.
 """
 
 from __future__ import annotations
@@ -77,9 +50,12 @@ from numba import njit
 
 from lightcuts.errors import LightcutsError
 from lightcuts.parallel import on_counter, on_threads
-from lightcuts.trees.kdtree import (KD_SUBTREES, LEAF_SIZE, kd_best_match, kd_build, kd_build_threaded,
-                                    kd_group_by_leaf, kd_merge, kd_merge_batch, kd_merge_batch_finish, kd_new,
-                                    kd_search_range, kd_subtree_starts, kd_wants_rebuild)
+from lightcuts.trees.bounds import points_box
+from lightcuts.trees.kd_build import kd_build, kd_build_threaded, kd_new
+from lightcuts.trees.kd_merge import (kd_merge, kd_merge_batch, kd_merge_batch_finish, kd_subtree_starts,
+                                      kd_wants_rebuild)
+from lightcuts.trees.kd_search import kd_best_match, kd_group_by_leaf, kd_search_range
+from lightcuts.trees.kd_tree import KD_SUBTREES, LEAF_SIZE
 from lightcuts.trees.metrics import Metric
 from lightcuts.trees.registry import BUILDERS
 
@@ -162,8 +138,8 @@ C_NEXT, C_SEARCHES, C_ROUNDS = 0, 1, 2
 
 def _rounds_start(position, normal, luminance, order, leafsize):
     """The locally-ordered builder's state, its kd-tree not built yet (the caller builds it, on the
-    threads, and fills ``todo``). Plain Python around :func:`kd_new`: as a kernel it compiled
-    kd_new's code a second time (1.6 s of a cold start).
+    threads, and fills ``todo``). Plain Python around :func:`~lightcuts.trees.kd_build.kd_new`, so
+    that kd_new is compiled once (docs/performance-trees.md, "chunks, cold compilation").
 
     Returns ``(kd, work, todo, todo_next, best, best_d, head, nxt, left, right, pair_sub, counters)``:
     todo, todo_next : (N,) int64 clusters to search this round, and the next round's; best, best_d :
@@ -199,7 +175,7 @@ def _pair_round(kd, todo, n_todo, todo_next, best, best_d, head, nxt, left, righ
     k = left.shape[0]
     new = counters[C_NEXT]
     n_pairs = 0
-    slot_of = kd[2]
+    slot_of = kd.slot_of
     starts = kd_subtree_starts(kd)
     counters[C_SEARCHES] += n_todo
     counters[C_ROUNDS] += 1
@@ -274,8 +250,7 @@ def _locally_ordered(position, normal, luminance, order, metric_id, has_cone, us
     """Fig. 4 in rounds: ``(left, right, light, counters)``, leaves as cluster ids (Morton order).
 
     Rounds of at least ``parallel_min`` searches split them over the numba threads. Each round is
-    two kernel calls from here (a kernel running all rounds would compile the search a second time,
-    seconds of a cold start, to save about 0.1 ms per round).
+    two kernel calls from here: a kernel running all rounds would compile the search a second time.
     """
     n = position.shape[0]
     light = _leaf_ids(n)
@@ -285,7 +260,7 @@ def _locally_ordered(position, normal, luminance, order, metric_id, has_cone, us
         position, normal, luminance, order, leafsize)
     kd_build_threaded(kd, work)
     # The first round searches the clusters in slot (kd-leaf) order, for locality.
-    todo[:] = kd[1]
+    todo[:] = kd.slot_id
     n_todo = n
     while counters[C_NEXT] < left.shape[0]:
         on_counter(kd_search_range, n_todo, parallel_min, kd, todo, n_todo, best, best_d, metric_id, has_cone,
@@ -314,7 +289,7 @@ def _agglomerate_heap(position, normal, luminance, order, metric_id, has_cone, u
         return left, right, light, stats
     kd, work = kd_new(position, normal, luminance, order, leafsize)
     kd_build(kd, work)
-    slot_of = kd[2]
+    slot_of = kd.slot_of
     new = np.int64(n)
     # Live entries never exceed the active clusters: each pop pushes at most one entry.
     hd = np.empty(n)
@@ -323,7 +298,7 @@ def _agglomerate_heap(position, normal, luminance, order, metric_id, has_cone, u
     size = np.int64(0)
     # In slot order (kd-leaf order) for memory locality; the tree does not change in this loop, so
     # the order does not change the result.
-    slot_id = kd[1]
+    slot_id = kd.slot_id
     for s in range(n):
         i = np.int64(slot_id[s])
         b, d = kd_best_match(kd, i, metric_id, has_cone, use_cone, c)
@@ -381,17 +356,13 @@ def _morton_keys(position, bits, index_bits):
     """(N,) uint64 keys: the Morton code of each position quantised to ``bits`` bits per axis over the
     bounding box, shifted left by ``index_bits``, or-ed with the light's index (unique keys)."""
     n = position.shape[0]
+    box_lo, box_hi = points_box(position, 0, n)
     lo = np.empty(3)
     scale = np.empty(3)
     top = np.float64((1 << bits) - 1)
     for t in range(3):
-        vmin = np.inf
-        vmax = -np.inf
-        for i in range(n):
-            vmin = min(vmin, position[i, t])
-            vmax = max(vmax, position[i, t])
-        lo[t] = vmin
-        scale[t] = top / (vmax - vmin) if vmax > vmin else 0.0
+        lo[t] = box_lo[t]
+        scale[t] = top / (box_hi[t] - box_lo[t]) if box_hi[t] > box_lo[t] else 0.0
     keys = np.empty(n, np.uint64)
     for i in range(n):
         code = np.uint64(0)
@@ -422,8 +393,8 @@ def morton_order(position: np.ndarray) -> np.ndarray:
     return (keys & np.uint64((1 << index_bits) - 1)).astype(np.int64)
 
 
-# Clusters of a round's todo list a search thread takes at a time (kd_search_range): 200K lights
-# make about 400 chunks in the first round, and the last chunk costs about 0.5 ms.
+# Clusters of a round's todo list a search thread takes at a time from a shared counter
+# (kd_search_range), so that a thread on a slower core does not hold up the round.
 SEARCH_CHUNK = 512
 # Rounds with fewer searches than this run on one thread (a round's thread start-up costs about as
 # much as a few dozen searches; the last rounds are small and many).

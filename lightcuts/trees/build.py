@@ -28,6 +28,7 @@ from lightcuts.errors import LightcutsError
 from lightcuts.hashing import mix64 as _mix64
 from lightcuts.lights.lightset import LUMINANCE, LightSet
 from lightcuts.parallel import balance, on_threads, run_all, threads_for
+from lightcuts.trees.bounds import box_union, points_box, row3, set_row3
 from lightcuts.trees.cones import cone_from_box
 from lightcuts.trees.metrics import Metric
 from lightcuts.trees.spec import TreeSpec, tree_spec
@@ -65,18 +66,9 @@ def default_c(lights: LightSet) -> float:
 
 @njit(cache=True)
 def _box_diagonal(position):
-    """Length of the diagonal of the (N, 3) points' bounding box (numpy's column reductions over an
-    (N, 3) array take several times longer)."""
-    lo0 = lo1 = lo2 = np.inf
-    hi0 = hi1 = hi2 = -np.inf
-    for i in range(position.shape[0]):
-        lo0 = min(lo0, position[i, 0])
-        lo1 = min(lo1, position[i, 1])
-        lo2 = min(lo2, position[i, 2])
-        hi0 = max(hi0, position[i, 0])
-        hi1 = max(hi1, position[i, 1])
-        hi2 = max(hi2, position[i, 2])
-    return np.sqrt((hi0 - lo0) ** 2 + (hi1 - lo1) ** 2 + (hi2 - lo2) ** 2)
+    """Length of the diagonal of the (N, 3) points' bounding box."""
+    lo, hi = points_box(position, 0, position.shape[0])
+    return np.sqrt((hi[0] - lo[0]) ** 2 + (hi[1] - lo[1]) ** 2 + (hi[2] - lo[2]) ** 2)
 
 
 def _check_lights(lights: LightSet) -> tuple[np.ndarray, np.ndarray]:
@@ -417,11 +409,14 @@ def _fill_blocks(order, s, e, leaves, internal, buf, left, right, light, positio
             node = internal[t]
             a = left[node]
             b = right[node]
+            lo, hi = box_union(row3(bbox_min, a, 0), row3(bbox_max, a, 0), row3(bbox_min, b, 0),
+                               row3(bbox_max, b, 0))
+            set_row3(bbox_min, node, 0, lo)
+            set_row3(bbox_max, node, 0, hi)
+            lo, hi = box_union(row3(nlo, a, 0), row3(nhi, a, 0), row3(nlo, b, 0), row3(nhi, b, 0))
+            set_row3(nlo, node, 0, lo)
+            set_row3(nhi, node, 0, hi)
             for d in range(3):
-                bbox_min[node, d] = min(bbox_min[a, d], bbox_min[b, d])
-                bbox_max[node, d] = max(bbox_max[a, d], bbox_max[b, d])
-                nlo[node, d] = min(nlo[a, d], nlo[b, d])
-                nhi[node, d] = max(nhi[a, d], nhi[b, d])
                 node_intensity[node, d] = node_intensity[a, d] + node_intensity[b, d]
             lum[node] = lum[a] + lum[b]
             # Draw between the children in the order of their smallest light, not of node ids.

@@ -11,8 +11,8 @@ i.e. the cone with axis ``a = m / d`` and ``cos(beta) = (1 + d^2 - r^2) / (2 d)`
 90 degrees (``cos(beta) < 0``) are kept as they are; ``d = 0`` or ``cos(beta) <= -1`` is the full
 sphere, returned as axis ``(0, 0, 0)`` and ``cos(beta) = -1``.
 
-The cone is a valid bound but not monotone under union (see the notes on the 2008 metric): a larger
-box can give a narrower cone than one of its parts' cones.
+The cone is a valid bound but not monotone under union: a larger box can give a narrower cone than
+one of its parts' cones (docs/math-trees.md, "Normal cones from a box of normals").
 """
 
 from __future__ import annotations

@@ -23,19 +23,19 @@ import numpy as np
 from numba import njit
 
 from lightcuts.parallel import balance, run_all, threads_for
+from lightcuts.trees.bounds import EMPTY_HI, EMPTY_LO, box_grow
 from lightcuts.trees.registry import BUILDERS
 
-_INF = np.inf
 # Below this many lights the build runs on one thread (thread start-up would cost more).
 _PARALLEL_MIN = 20000
-# The empty box: min/max accumulators before the first point.
-_EMPTY_LO = (_INF, _INF, _INF, _INF, _INF, _INF)
-_EMPTY_HI = (-_INF, -_INF, -_INF, -_INF, -_INF, -_INF)
+# The empty 6D box: min/max accumulators before the first point.
+_EMPTY_LO = EMPTY_LO + EMPTY_LO
+_EMPTY_HI = EMPTY_HI + EMPTY_HI
 
 
 # The kernels keep 6D points and boxes in 6-tuples rather than small arrays: tuples stay in
 # registers, while a store into the point array could alias a small array and force a memory
-# round trip per coordinate (about 2.5x slower on the partition loop).
+# round trip per coordinate (docs/performance-trees.md, "tree build, fill and divisive partition").
 
 @njit(cache=True)
 def _row(pts, t):
@@ -45,11 +45,11 @@ def _row(pts, t):
 
 @njit(cache=True)
 def _grow(lo, hi, v):
-    """The box (lo, hi) grown to contain point v (6-tuples)."""
-    return ((min(lo[0], v[0]), min(lo[1], v[1]), min(lo[2], v[2]),
-             min(lo[3], v[3]), min(lo[4], v[4]), min(lo[5], v[5])),
-            (max(hi[0], v[0]), max(hi[1], v[1]), max(hi[2], v[2]),
-             max(hi[3], v[3]), max(hi[4], v[4]), max(hi[5], v[5])))
+    """The 6D box (lo, hi) grown to contain point v (6-tuples): its box of positions and its box of
+    scaled normals, each grown by v's half."""
+    plo, phi = box_grow(lo[:3], hi[:3], v[:3])
+    nlo, nhi = box_grow(lo[3:], hi[3:], v[3:])
+    return plo + nlo, phi + nhi
 
 
 @njit(cache=True)

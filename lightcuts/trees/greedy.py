@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, types
 
-from lightcuts.trees.cones import cone_from_box
+from lightcuts.trees.bounds import box_union, row3, set_row3, union_cone
 from lightcuts.trees.registry import BUILDERS
 
 #: The largest light set ``greedy`` accepts: it is O(N^2) (seconds at this size, hours at 10^5).
@@ -31,17 +31,11 @@ GREEDY_MAX_LIGHTS = 20000
 @njit
 def _union_cost(cost, has_cone, c, lum, lo, hi, nlo, nhi, a, b):
     """Metric of the union of clusters a and b."""
-    lo0 = min(lo[a, 0], lo[b, 0])
-    lo1 = min(lo[a, 1], lo[b, 1])
-    lo2 = min(lo[a, 2], lo[b, 2])
-    hi0 = max(hi[a, 0], hi[b, 0])
-    hi1 = max(hi[a, 1], hi[b, 1])
-    hi2 = max(hi[a, 2], hi[b, 2])
+    ulo, uhi = box_union(row3(lo, a, 0), row3(hi, a, 0), row3(lo, b, 0), row3(hi, b, 0))
     cone_cos = -1.0
     if has_cone:
-        cone_cos = cone_from_box(min(nlo[a, 0], nlo[b, 0]), min(nlo[a, 1], nlo[b, 1]), min(nlo[a, 2], nlo[b, 2]),
-                                 max(nhi[a, 0], nhi[b, 0]), max(nhi[a, 1], nhi[b, 1]), max(nhi[a, 2], nhi[b, 2]))[3]
-    return cost(lum[a] + lum[b], lo0, lo1, lo2, hi0, hi1, hi2, cone_cos, has_cone, c)
+        cone_cos = union_cone(row3(nlo, a, 0), row3(nhi, a, 0), row3(nlo, b, 0), row3(nhi, b, 0))[3]
+    return cost(lum[a] + lum[b], ulo[0], ulo[1], ulo[2], uhi[0], uhi[1], uhi[2], cone_cos, has_cone, c)
 
 
 @njit
@@ -134,11 +128,12 @@ def _greedy(cost, has_cone, c, position, normal, luminance):
         b = best[a]
         left[new] = min(a, b)
         right[new] = max(a, b)
-        for d in range(3):
-            lo[new, d] = min(lo[a, d], lo[b, d])
-            hi[new, d] = max(hi[a, d], hi[b, d])
-            nlo[new, d] = min(nlo[a, d], nlo[b, d])
-            nhi[new, d] = max(nhi[a, d], nhi[b, d])
+        ulo, uhi = box_union(row3(lo, a, 0), row3(hi, a, 0), row3(lo, b, 0), row3(hi, b, 0))
+        set_row3(lo, new, 0, ulo)
+        set_row3(hi, new, 0, uhi)
+        ulo, uhi = box_union(row3(nlo, a, 0), row3(nhi, a, 0), row3(nlo, b, 0), row3(nhi, b, 0))
+        set_row3(nlo, new, 0, ulo)
+        set_row3(nhi, new, 0, uhi)
         lum[new] = lum[a] + lum[b]
         t = 0
         while t < count:

@@ -13,8 +13,9 @@ name               id  d(C)
 =================  ==  =====================================================================
 
 Omni and directional lights have no cone term (``has_cone`` False): walter2008 is then I L^4 and
-walter2005 I L^2. The 2008 paper prints the cone term as c^2 (1 - S)^2, which falls as the cone
-widens and contradicts its own eq. 1; S^2 is the size-type reading (see the notes).
+walter2005 I L^2. L^2 is the box's squared diagonal, the sum of its squared extents. The 2008 paper
+prints eq. 2's cone term as c^2 (1 - S)^2, which falls as the cone widens; c^2 S^2 is the reading
+that agrees with its eq. 1 (docs/math-trees.md, "Reading eq. 2 with S^2").
 
 User metrics
 ------------
