@@ -350,3 +350,17 @@ def test_forest_packs_every_tree_consistently():
     # The kernel's rows (64 bytes) each sit on one cache line.
     assert f.node_b.ctypes.data % 64 == 0 and f.node_b.strides == (64, 4)
     assert f.light_f.ctypes.data % 64 == 0 and f.light_f.strides == (64, 8)
+
+
+def test_warm_kernels_compiles_the_specialisation_renders_use(cornell):
+    # lightcuts.commands.warmup compiles the render kernel in a child process through warm_kernels
+    # (no lights, another scene): the real renders must then find that very specialisation in the cache.
+    from lightcuts.commands.warmup import is_cached
+    from lightcuts.render.integrator import _render_band, warm_kernels
+
+    scene, caster, _, lights, trees, _ = cornell
+    warm_kernels()
+    render_image(scene, caster, lights, trees, crop=(0, 0, 2, 2))
+    render_reference(scene, caster, lights, crop=(0, 0, 2, 2))
+    assert len(_render_band.signatures) == 1
+    assert is_cached(_render_band)

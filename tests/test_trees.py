@@ -125,7 +125,7 @@ def test_cone_sine(cos_half):
 # ---------------------------------------------------------------------------------------- metrics
 
 def numpy_metric(name, intensity, lo, hi, cone_cos, has_cone, c):
-    """The formulas of docs/math-trees.md ("Clustering metrics"), written independently of lightcuts.trees.metrics."""
+    """The formulas of docs/math.md ("Clustering metrics"), written independently of lightcuts.trees.metrics."""
     ext = hi - lo
     l2 = (ext ** 2).sum(axis=1)
     if name == "surface-area":

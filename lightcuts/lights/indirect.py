@@ -70,7 +70,7 @@ _MAX_PATHS_PER_VPL = 64
 _DIMS = 8  # random dimensions per bounce (the hash's counter is bounce * _DIMS + dimension)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _uniform(key, path, bounce, dim):
     """A uniform float64 in [0, 1) that depends only on (key, path, bounce, dim)."""
     h = _mix64(key ^ _mix64(np.uint64(path) + np.uint64(0x9E3779B97F4A7C15)))

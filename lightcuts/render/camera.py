@@ -30,7 +30,7 @@ _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _S11 = np.uint64(11)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def hash_uniform(seed, pixel, sample, dim):
     """A uniform float64 in [0, 1) determined only by the four non-negative integer counters."""
     h = mix64(np.uint64(seed) + _GOLDEN)

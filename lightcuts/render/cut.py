@@ -167,8 +167,10 @@ def lightcut(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, e
     scalars for the rest (and the two heap helpers).
     """
     fr = receiver_frames(n0, n1, n2, r0, r1, r2)
-    n_slots = 0
-    size = 0
+    # int64 zeros, not literals: typing would also compile the heap helpers, _flush and
+    # packet_set_ray for a Literal[int](0) argument, a specialisation nothing calls.
+    n_slots = np.int64(0)
+    size = np.int64(0)
     rays = 0
     t0 = 0.0
     t1 = 0.0
@@ -198,7 +200,7 @@ def lightcut(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, e
     # needs any more) while t counts them as visible. t is then the upper end of the true total,
     # so a top bound > eps * t must be refined whatever the rays return; only a top bound
     # <= eps * t needs their answers (docs/math.md, "Deferred visibility").
-    lanes = 0
+    lanes = np.int64(0)
     while size > 0 and n_slots < max_cut:
         if entry_bound(heap[0]) <= eps * luminance(t0, t1, t2):
             if lanes == 0:

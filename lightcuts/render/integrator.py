@@ -301,3 +301,15 @@ def render_reference(scene, caster, lights: dict, camera=None, spp: int = 1, cla
     return _render(scene, caster, lights, None, camera, spp, 0.0, 1, clamp, clamp_min_distance, envmap, seed,
                    crop, progress, True, visibility)
 
+
+def warm_kernels() -> None:
+    """Compile the render kernel into numba's cache (and the forest's packing kernel it calls first)
+    by rendering one pixel of the built-in Cornell box without lights: a kernel's specialisation
+    depends only on its arguments' types, which are those of every render
+    (lightcuts.commands.warmup runs this in a child process while the command builds the trees)."""
+    from lightcuts.accel import make_caster
+    from lightcuts.scene.cornell import cornell_box
+
+    scene = cornell_box()
+    with make_caster(scene, "embree") as caster:
+        render_image(scene, caster, {}, {}, crop=(0, 0, 1, 1))

@@ -6,7 +6,7 @@ Both merge, bottom-up, pairs of clusters that are each other's best match under 
 (:mod:`lightcuts.trees.metrics`), finding best matches with the kd-tree of
 :mod:`lightcuts.trees.kd_tree`. With a non-decreasing metric (the paper's eq. 1) both build the
 greedy tree (Fig. 2) up to ties; with box-of-normals cones the metric is not monotone, and the tree
-may differ from the greedy one in a few clusters (docs/math-trees.md, "Non-decreasing metrics";
+may differ from the greedy one in a few clusters (docs/math.md, "Non-decreasing metrics";
 ``benchmarks/bench_agglomerative.py`` measures how many).
 
 ``agglomerative`` -- locally-ordered clustering (Fig. 4: merge A and B as soon as each is the
@@ -18,7 +18,7 @@ other's best match), run in rounds so that its searches can share the cores::
             merge(A, B)
         search best(X) for each new cluster X, and each X whose best match was merged
 
-Why these rounds build Fig. 4's tree: docs/math-trees.md, "Rounds of mutual best matches". A
+Why these rounds build Fig. 4's tree: docs/math.md, "Rounds of mutual best matches". A
 round's searches only read the kd-tree and each writes its own cluster's answer, so they run on the
 numba threads, the clusters of one kd leaf together
 (:func:`~lightcuts.trees.kd_search.kd_search_range`); the pairs are chosen on one thread in a fixed
@@ -36,7 +36,7 @@ Both kernels run on the lights sorted along a Morton curve of their positions
 (:func:`morton_order`), so that clusters near each other in space have nearby ids and the
 per-cluster arrays stay in cache; the leaves are relabelled to light ids at the end. Only the ids
 among tied clusters depend on that order. No call inside a per-cluster or per-pair loop takes the
-KdTree: each would cost an atomic reference-count update per array (docs/performance-trees.md,
+KdTree: each would cost an atomic reference-count update per array (docs/performance.md,
 "Reference counting").
 
 Node ids of the returned topology: leaves 0..N-1 are lights 0..N-1, merge m makes node N + m, the
@@ -139,7 +139,7 @@ C_NEXT, C_SEARCHES, C_ROUNDS = 0, 1, 2
 def _rounds_start(position, normal, luminance, order, leafsize):
     """The locally-ordered builder's state, its kd-tree not built yet (the caller builds it, on the
     threads, and fills ``todo``). Plain Python around :func:`~lightcuts.trees.kd_build.kd_new`, so
-    that kd_new is compiled once (docs/performance-trees.md, "chunks, cold compilation").
+    that kd_new is compiled once (docs/performance.md, "chunks, cold compilation").
 
     Returns ``(kd, work, todo, todo_next, best, best_d, head, nxt, left, right, pair_sub, counters)``:
     todo, todo_next : (N,) int64 clusters to search this round, and the next round's; best, best_d :

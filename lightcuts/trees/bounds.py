@@ -9,7 +9,7 @@ intensities, which every builder, the kd-tree and the tree fill compute with the
 Corners and points are 3-tuples of float64, which stay in registers. Every helper but
 :func:`points_box` is inlined by numba itself (``inline="always"``): a call is then the same
 ``min``/``max`` as code written out in place, to LLVM too, so loops that vectorised still do, and
-the accessors that take arrays cost no reference counting (docs/performance-trees.md, "Shared
+the accessors that take arrays cost no reference counting (docs/performance.md, "Shared
 union helpers"). Each ``min(a, b)`` keeps its operands in the order ``a`` (the first cluster) then
 ``b``, which decides the sign of a zero result: trees are the same bit for bit as with the unions
 written out.

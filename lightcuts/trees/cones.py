@@ -12,7 +12,7 @@ i.e. the cone with axis ``a = m / d`` and ``cos(beta) = (1 + d^2 - r^2) / (2 d)`
 sphere, returned as axis ``(0, 0, 0)`` and ``cos(beta) = -1``.
 
 The cone is a valid bound but not monotone under union: a larger box can give a narrower cone than
-one of its parts' cones (docs/math-trees.md, "Normal cones from a box of normals").
+one of its parts' cones (docs/math.md, "Normal cones from a box of normals").
 """
 
 from __future__ import annotations

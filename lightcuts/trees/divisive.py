@@ -35,7 +35,7 @@ _EMPTY_HI = EMPTY_HI + EMPTY_HI
 
 # The kernels keep 6D points and boxes in 6-tuples rather than small arrays: tuples stay in
 # registers, while a store into the point array could alias a small array and force a memory
-# round trip per coordinate (docs/performance-trees.md, "tree build, fill and divisive partition").
+# round trip per coordinate (docs/performance.md, "tree build, fill and divisive partition").
 
 @njit(cache=True)
 def _row(pts, t):

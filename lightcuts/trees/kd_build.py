@@ -132,7 +132,7 @@ def _split_node(keys, idx, rs, re, cell, node_s, k):
     s = rs[k]
     e = re[k]
     mid = (s + e) // 2
-    axis = 0
+    axis = np.int64(0)  # not the literal 0: a Literal[int](0) _select would compile too
     for t in range(1, 3):
         if cell[k, 3 + t] - cell[k, t] > cell[k, 3 + axis] - cell[k, axis]:
             axis = t
@@ -344,8 +344,8 @@ def kd_new(position, normal, luminance, order, leafsize):
     info = np.zeros(4, np.int64)
     info[I_BUILT] = n
     info[I_LEAFSIZE] = leafsize
-    kd = KdTree(slot_f, slot_id, slot_of, np.empty(n, np.int32), _rows_f32(n_nodes, NODE_WIDTH),
-                _rows_f32(n_nodes, NORMAL_WIDTH), np.zeros(n_nodes, np.int32), np.zeros((1 << depth) + 1, np.int64),
-                info, np.empty(_STACK, np.int64), np.empty(_STACK), np.empty(leafsize))
+    kd = KdTree(slot_f, slot_id, slot_of, np.empty(n, np.int32), _rows_f32(n_nodes, np.int64(NODE_WIDTH)),
+                _rows_f32(n_nodes, np.int64(NORMAL_WIDTH)), np.zeros(n_nodes, np.int32),
+                np.zeros((1 << depth) + 1, np.int64), info, np.empty(_STACK, np.int64), np.empty(_STACK), np.empty(leafsize))
     work = KdWork(np.empty((n, 3)), np.empty(n, np.int32), np.empty((n, SLOT_WIDTH)), np.empty(n, np.int32))
     return kd, work

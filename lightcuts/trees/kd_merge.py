@@ -97,7 +97,8 @@ def kd_merge(kd, work, a, b, new_id, rebuild):
     (False: the caller does, see :func:`kd_wants_rebuild`).
     """
     # The batch kernel with one pair (the same specialisation: int32 arrays).
-    _merge_rows(kd, np.full(1, a, np.int32), np.full(1, b, np.int32), 0, 1, new_id, np.zeros(1, np.int32), 0, 1, 0)
+    _merge_rows(kd, np.full(1, a, np.int32), np.full(1, b, np.int32), np.int64(0), np.int64(1), new_id,
+                np.zeros(1, np.int32), np.int64(0), np.int64(1), np.int64(0))
     kd.info[I_ACTIVE] -= 1
     if rebuild and kd_wants_rebuild(kd):
         kd_build(kd, work)
@@ -132,7 +133,7 @@ def kd_merge_batch(kd, left, right, new0, n_pairs, pair_sub, s, e):
     """Merges ``left[new0 + p], right[new0 + p] -> new0 + p`` of the batch's pairs p with
     ``pair_sub[p]`` in [s, e) (their subtree, :func:`kd_subtree`), in batch order; the counts of the
     top levels and ``info`` wait for :func:`kd_merge_batch_finish`."""
-    _merge_rows(kd, left, right, new0, n_pairs, new0, pair_sub, s, e, _BATCH_TOP)
+    _merge_rows(kd, left, right, new0, n_pairs, new0, pair_sub, s, e, np.int64(_BATCH_TOP))
 
 
 @njit(cache=True)
@@ -141,7 +142,7 @@ def kd_merge_batch_finish(kd, left, right, new0, n_pairs, pair_sub):
     order, then the counts of the top levels and ``info``."""
     node_cnt = kd.node_cnt
     top = _BATCH_TOP if kd.info[I_FIRST_LEAF] >= _BATCH_TOP else 0
-    _merge_rows(kd, left, right, new0, n_pairs, new0, pair_sub, -1, 0, top)
+    _merge_rows(kd, left, right, new0, n_pairs, new0, pair_sub, np.int64(-1), np.int64(0), top)
     if top > 0:
         for k in range(top - 1, -1, -1):
             node_cnt[k] = node_cnt[2 * k + 1] + node_cnt[2 * k + 2]

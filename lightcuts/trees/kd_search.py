@@ -5,7 +5,7 @@ climbing to the root, each sibling subtree on the way, top-down with the child o
 split first. A node is opened only if its lower bound of d(A u B) over the clusters B under it is
 below the best d so far: per axis the union's extent is bounded from the node's ``hmin``, ``lmax``,
 ``emin``, the intensity from ``imin``, and the cone from the same bound on the boxes of normals
-(docs/math-trees.md, "The kd-tree's lower bound"). A leaf is scanned in two passes: the metric
+(docs/math.md, "The kd-tree's lower bound"). A leaf is scanned in two passes: the metric
 without its cone term for every slot (no branches, so the loads of all rows overlap), then the
 full metric only for the slots the first pass does not prune.
 
@@ -89,7 +89,7 @@ def kd_best_match(kd, a, metric_id, has_cone, use_cone, c):
     :func:`kd_search_groups` with a group of one finds the same, along the same traversal; this
     search stays beside it for the heap builder, which searches one cluster at a time, since a
     group's set-up (member rows, leaf columns, scratch) costs more than one search saves
-    (docs/performance-trees.md, "Grouped searches").
+    (docs/performance.md, "Grouped searches").
     """
     slot_f, slot_id, slot_of, slot_leaf = kd.slot_f, kd.slot_id, kd.slot_of, kd.slot_leaf
     node_s, node_n, node_cnt, leaf_start, info = kd.node_s, kd.node_n, kd.node_cnt, kd.leaf_start, kd.info
@@ -212,7 +212,7 @@ def kd_search_groups(kd, todo, n_todo, first, last, out_best, out_best_d, metric
     The members' searches share their node bounds: a node is opened unless it bounds d(A u B) from
     below for every member A at once, by the kd-tree's bound with A's box replaced by the group's
     ``hi >= min hi``, ``lo <= max lo``, ``extent >= min extent`` (and the same for the normal boxes;
-    docs/math-trees.md, "Groups"), against the largest best d of the group. A leaf it reaches costs
+    docs/math.md, "Groups"), against the largest best d of the group. A leaf it reaches costs
     each member whose own bound does not prune it one scan; the leaf's boxes are copied as columns
     once for those scans, so that their first pass reads consecutive values and vectorises.
     """

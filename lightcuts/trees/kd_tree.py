@@ -3,7 +3,7 @@ r"""The kd-tree over the active clusters of the agglomerative builders: its stor
 findBestMatch(A) (Walter, Bala, Kulkarni, Pingali 2008, section 3.1) asks for the active cluster B
 that minimises the metric d(A u B) (:mod:`lightcuts.trees.metrics`). The kd-tree's points are the
 clusters' box centres, and every node keeps enough to bound d(A u B) from below for every B under
-it, which lets a branch-and-bound search skip most of the tree (the bound: docs/math-trees.md,
+it, which lets a branch-and-bound search skip most of the tree (the bound: docs/math.md,
 "The kd-tree's lower bound"). Building it: :mod:`lightcuts.trees.kd_build`; searching it:
 :mod:`lightcuts.trees.kd_search`; merging clusters in it: :mod:`lightcuts.trees.kd_merge`.
 
@@ -43,7 +43,7 @@ NORMAL_WIDTH = 9
 # Entries of KdTree.info.
 I_FIRST_LEAF, I_BUILT, I_LEAFSIZE, I_ACTIVE = 0, 1, 2, 3
 
-# Default clusters per kd leaf (docs/performance-trees.md, "Leaf size").
+# Default clusters per kd leaf (docs/performance.md, "Leaf size").
 LEAF_SIZE = 32
 # A (re)build splits this many levels on one thread, then hands the 2^TOP_LEVELS subtrees below to
 # threads or does them in turn: the same tree either way. Merges within one of those subtrees run in

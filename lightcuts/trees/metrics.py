@@ -15,7 +15,7 @@ name               id  d(C)
 Omni and directional lights have no cone term (``has_cone`` False): walter2008 is then I L^4 and
 walter2005 I L^2. L^2 is the box's squared diagonal, the sum of its squared extents. The 2008 paper
 prints eq. 2's cone term as c^2 (1 - S)^2, which falls as the cone widens; c^2 S^2 is the reading
-that agrees with its eq. 1 (docs/math-trees.md, "Reading eq. 2 with S^2").
+that agrees with its eq. 1 (docs/math.md, "Reading eq. 2 with S^2").
 
 User metrics
 ------------

@@ -1,0 +1,73 @@
+"""numba's on-disk cache from the commands' side: is it cold, and compiling the render kernel on the side.
+
+On an empty cache a render spends most of its time compiling kernels (``cache=True``: later runs
+load them). The render kernel (lightcuts.render.integrator) is the largest of them and is needed
+last, so :func:`start_render_warmup` compiles it in a child process (one core) while this process
+traces lights and builds trees (the other), and :func:`finish_warmup` waits for the child before
+the first render, which then loads the kernel from the cache. Correct however the child ends: the
+cache is a cache (numba writes each entry atomically), so a child that failed, was killed or found
+no writable cache only leaves this process to compile the kernel itself.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+#: Longest wait for the child before the render compiles the kernel itself, seconds.
+WARMUP_TIMEOUT = 600.0
+
+
+def is_cached(dispatcher) -> bool:
+    """Whether numba's cache holds a compiled version of the current source of ``dispatcher``
+    (a ``cache=True`` kernel; True when that cannot be told, e.g. caching disabled)."""
+    try:
+        return bool(dispatcher._cache._cache_file._load_index())
+    except Exception:  # numba internals differ, no cache: do not claim the cache is cold
+        return True
+
+
+def cold_kernels() -> list[str]:
+    """Names of the render command's main kernels that numba's cache does not hold (one per stage)."""
+    from lightcuts.lights.indirect import _trace_fused
+    from lightcuts.render.integrator import _render_band
+    from lightcuts.trees.build import _fill_ranges
+    from lightcuts.trees.kd_search import kd_search_range
+
+    return [d.py_func.__qualname__ for d in (_trace_fused, kd_search_range, _fill_ranges, _render_band)
+            if not is_cached(d)]
+
+
+def start_render_warmup() -> subprocess.Popen | None:
+    """If the render kernel is not in the cache, start a child process that compiles it (and writes
+    it to the cache) by rendering one pixel of a small scene; None if it is cached or the child
+    cannot start."""
+    from lightcuts.render.integrator import _render_band
+
+    if is_cached(_render_band):
+        return None
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([root] + [p for p in [env.get("PYTHONPATH")] if p])
+    try:
+        return subprocess.Popen([sys.executable, "-c", "from lightcuts.render.integrator import warm_kernels; "
+                                 "warm_kernels()"], env=env, stdin=subprocess.DEVNULL,
+                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    except OSError:
+        return None
+
+
+def finish_warmup(proc: subprocess.Popen | None, timeout: float = WARMUP_TIMEOUT) -> None:
+    """Wait for the child of :func:`start_render_warmup` (None: nothing to do); after ``timeout``
+    seconds it is killed, and the caller compiles what it needs itself."""
+    if proc is None:
+        return
+    try:
+        proc.wait(timeout)
+    except subprocess.TimeoutExpired:
+        pass
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
