@@ -34,25 +34,14 @@ import numba
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-import lightcuts.accel.embree  # noqa: E402,F401  (registers the built-in casters)
 from lightcuts.accel import RAY_CASTERS, make_caster  # noqa: E402
 from lightcuts.io import save_csv  # noqa: E402
+sys.path.insert(0, str(ROOT / "benchmarks"))
+from common import load_average, timed  # noqa: E402
 from lightcuts.lights.direct import direct_lights  # noqa: E402
 from lightcuts.lights.environment import environment_lights, procedural_sky  # noqa: E402
 from lightcuts.lights.indirect import indirect_lights  # noqa: E402
 from lightcuts.scene.cornell import cornell_box  # noqa: E402
-
-
-def timed(fn, repeats):
-    """(median wall s, median CPU s, last result) over ``repeats`` calls after one warm-up call."""
-    fn()
-    wall, cpu = [], []
-    for _ in range(repeats):
-        t0, c0 = time.perf_counter(), time.process_time()
-        out = fn()
-        wall.append(time.perf_counter() - t0)
-        cpu.append(time.process_time() - c0)
-    return statistics.median(wall), statistics.median(cpu), out
 
 
 def cli_runs(repeats):
@@ -83,7 +72,7 @@ def main() -> None:
     ap.add_argument("--no-cli", action="store_true", help="skip the fresh-process CLI timing")
     args = ap.parse_args()
 
-    load = os.getloadavg()[0]
+    load = load_average()
     scene = cornell_box()
     rows = []
     threads = numba.get_num_threads()
@@ -93,14 +82,15 @@ def main() -> None:
         for n_threads in sorted({threads, 1}, reverse=True):
             numba.set_num_threads(n_threads)
             try:
-                wall, cpu, ls = timed(lambda: indirect_lights(scene, caster, args.count, seed=1), args.repeats)
+                wall, cpu, ls = timed(lambda: indirect_lights(scene, caster, args.count, seed=1), args.repeats,
+                                      warmup=True)
             finally:
                 numba.set_num_threads(threads)
             rows.append(dict(benchmark=f"indirect/{name}", threads=n_threads, lights=len(ls),
                              paths=ls.meta["indirect_paths"], median_s=wall, cpu_s=cpu))
-    wall, cpu, ls = timed(lambda: direct_lights(scene, 1024, seed=1), args.repeats)
+    wall, cpu, ls = timed(lambda: direct_lights(scene, 1024, seed=1), args.repeats, warmup=True)
     rows.append(dict(benchmark="direct", threads=threads, lights=len(ls), paths="", median_s=wall, cpu_s=cpu))
-    wall, cpu, ls = timed(lambda: environment_lights(procedural_sky(), 4096, seed=1), args.repeats)
+    wall, cpu, ls = timed(lambda: environment_lights(procedural_sky(), 4096, seed=1), args.repeats, warmup=True)
     rows.append(dict(benchmark="environment", threads=threads, lights=len(ls), paths="", median_s=wall, cpu_s=cpu))
     if not args.no_cli and (ROOT / "configs" / "cornell.yaml").is_file():
         wall, reported, n = cli_runs(max(3, args.repeats // 2 + 1))

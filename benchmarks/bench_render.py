@@ -29,8 +29,6 @@ average at the start is printed and saved. Results go to benchmarks/results/rend
 from __future__ import annotations
 
 import argparse
-import os
-import statistics
 import sys
 import time
 from pathlib import Path
@@ -43,6 +41,8 @@ sys.path.insert(0, str(ROOT))
 
 from lightcuts.accel import make_caster  # noqa: E402
 from lightcuts.io import save_csv  # noqa: E402
+sys.path.insert(0, str(ROOT / "benchmarks"))
+from common import load_average, timed  # noqa: E402
 from lightcuts.lights.direct import direct_lights  # noqa: E402
 from lightcuts.lights.indirect import indirect_lights  # noqa: E402
 from lightcuts.lights.lightset import LUMINANCE, LightSet  # noqa: E402
@@ -53,17 +53,6 @@ from lightcuts.trees import BUILDERS, build_tree  # noqa: E402
 
 FIELDS = ("case", "builder", "resolution", "n_lights", "eps", "seconds", "cpu_seconds", "runs", "cut_size_mean",
           "shadow_rays_per_pixel", "threads", "load_avg", "notes")
-
-
-def timed(fn, repeats: int):
-    """(median wall seconds, median process CPU seconds, last result) of ``repeats`` calls."""
-    times, cpu, result = [], [], None
-    for _ in range(repeats):
-        t0, c0 = time.perf_counter(), time.process_time()
-        result = fn()
-        times.append(time.perf_counter() - t0)
-        cpu.append(time.process_time() - c0)
-    return statistics.median(times), statistics.median(cpu), result
 
 
 def main() -> None:
@@ -78,7 +67,7 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true", help="only the full image (no split, crop or other builders)")
     args = ap.parse_args()
 
-    load = os.getloadavg()[0]
+    load = load_average()
     threads = numba.get_num_threads()
     scene = cornell_box()
     c = scene.camera

@@ -7,7 +7,7 @@ render the same crop in turn, so that a slow phase of the machine slows both ali
 the median over pairs of the ratio B / A. A null run (the same version twice) gave ratios of
 0.99 +- 0.05 over 8-12 pairs; a change of 4% showed as 1.04 in repeated runs.
 
-    python benchmarks/ab_render.py OTHER_CHECKOUT [--pairs 12] [--crop 192,192,320,320]
+    python tools/ab_render.py OTHER_CHECKOUT [--pairs 12] [--crop 192,192,320,320]
         [--indirect 100000] [--threads N] [--out benchmarks/results/ab_render.csv]
 
 A is this checkout, B the other one (a folder holding ``lightcuts/``, e.g. a ``git worktree``). The
