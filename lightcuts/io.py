@@ -175,11 +175,20 @@ def read_npz(path: str | os.PathLike, what: str) -> dict[str, np.ndarray]:
     if not path.is_file():
         raise LightcutsError(f"{path}: no such {what} file")
     try:
+        with open(path, "rb") as f:
+            magic = f.read(6)
+    except OSError as exc:
+        raise LightcutsError(f"{path}: cannot read {what} file ({exc.strerror or exc})") from None
+    if magic == b"\x93NUMPY":
+        raise LightcutsError(f"{path}: not a .npz {what} file (a single .npy array)")
+    if not magic.startswith(b"PK"):
+        raise LightcutsError(f"{path}: not a .npz {what} file (not a zip archive)")
+    try:
         z = np.load(path, allow_pickle=False)
     except Exception as exc:
         raise LightcutsError(f"{path}: not a .npz {what} file ({one_line(exc)})") from None
     if not isinstance(z, np.lib.npyio.NpzFile):
-        raise LightcutsError(f"{path}: not a .npz {what} file (a single .npy array)")
+        raise LightcutsError(f"{path}: not a .npz {what} file")
     out = {}
     with z:
         for k in z.files:

@@ -236,8 +236,8 @@ def _apply_override(data: dict, assignment: str, source: str) -> None:
     try:
         value = yaml.safe_load(text)
     except yaml.YAMLError as exc:
-        raise LightcutsError(f"--set {assignment}: value is not valid YAML "
-                             f"({getattr(exc, 'problem', None) or 'parse error'}); quote it to give a string")
+        what = " ".join(str(getattr(exc, "problem", None) or exc).split())
+        raise LightcutsError(f"--set {assignment}: value is not valid YAML ({what}); quote it to give a string")
     if not key.strip() or any(not p for p in parts):
         raise LightcutsError(f"--set {assignment!r}: expected a dotted key, e.g. render.eps=0.01")
     node = data
@@ -296,7 +296,8 @@ def load_config(path: str | Path, overrides: list[str] = ()) -> RunConfig:
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" line {mark.line + 1}" if mark is not None else ""
-        raise LightcutsError(f"{path}:{where}: invalid YAML ({getattr(exc, 'problem', exc)})") from None
+        what = " ".join(str(getattr(exc, "problem", None) or exc).split())
+        raise LightcutsError(f"{path}:{where}: invalid YAML ({what})") from None
     if data is None:
         data = {}
     if not isinstance(data, dict):

@@ -24,6 +24,7 @@ import numpy as np
 
 from lightcuts.errors import LightcutsError
 from lightcuts.io import read_npz, save_npz
+from lightcuts.limits import MAX_COORD, MAX_INTENSITY
 
 LIGHT_TYPES = ("omni", "oriented", "directional")
 # Metadata that builders compute with (lightcuts.trees.build.default_c), checked on reading.
@@ -123,6 +124,10 @@ class LightSet:
                 raise LightcutsError(f"{path}: {k} has non-finite or non-numeric values")
         if np.any(arrays["intensity"] < 0):
             raise LightcutsError(f"{path}: intensity has negative values")
+        for k, limit in (("position", MAX_COORD), ("intensity", MAX_INTENSITY)):
+            if arrays[k].size and float(np.abs(arrays[k]).max()) > limit:
+                raise LightcutsError(f"{path}: {k} has values beyond {limit:g} in magnitude "
+                                     "(the clustering metric would overflow)")
         if z["type"].ndim != 0 or z["type"].dtype.kind != "U":
             raise LightcutsError(f"{path}: type must be a 0-d string, one of {', '.join(LIGHT_TYPES)}")
         typ = str(z["type"])
