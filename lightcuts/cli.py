@@ -1,6 +1,10 @@
 """Command line: ``lightcuts lights|tree|scaling|render CONFIG`` (one module each in lightcuts.commands).
 
-User errors (LightcutsError) print one line ``error: ...`` and exit with status 2.
+User errors (LightcutsError) print one line ``error: ...`` and exit with status 2. Ctrl-C (SIGINT)
+and SIGTERM print ``error: interrupted`` / ``error: terminated``, remove the run's temporary files
+and exit with 130 / 143 within about a second: the command runs on a worker thread while the main
+thread waits in short joins, so the signal handler runs at once (the long numba kernels release
+the GIL).
 Heavy modules (numba kernels, colour, matplotlib) are imported inside the commands so that
 ``lightcuts --help`` stays fast.
 """
@@ -9,7 +13,10 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
+import signal
 import sys
+import threading
 
 from lightcuts.commands import COMMANDS
 from lightcuts.errors import LightcutsError
@@ -26,16 +33,60 @@ def build_parser() -> argparse.ArgumentParser:
     return ap
 
 
-def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+#: Exit status and message by signal.
+_SIGNALS = {signal.SIGINT: (130, "interrupted"), signal.SIGTERM: (143, "terminated")}
+
+
+def _run(args) -> int:
     try:
         return args.func(args)
     except LightcutsError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        message = " ".join(str(exc).splitlines())  # one line, whatever a message quotes
+        print(f"error: {message}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("error: interrupted", file=sys.stderr)
         return 130
+
+
+def _on_signal(signum, frame) -> None:
+    """Remove the temporaries, print one line and end the process (worker threads included)."""
+    from lightcuts.io import remove_temporaries
+
+    code, what = _SIGNALS[signum]
+    remove_temporaries()
+    try:
+        sys.stderr.write(f"\nerror: {what}\n" if sys.stderr.isatty() else f"error: {what}\n")
+        sys.stderr.flush()
+    finally:
+        os._exit(code)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    if threading.current_thread() is not threading.main_thread():
+        return _run(args)  # signals reach only the main thread: nothing to wait for
+    result = []
+
+    def work():
+        try:
+            result.append((True, _run(args)))
+        except BaseException as exc:  # re-raised on the calling thread
+            result.append((False, exc))
+
+    worker = threading.Thread(target=work, name="lightcuts-command", daemon=True)
+    before = {s: signal.signal(s, _on_signal) for s in _SIGNALS}
+    try:
+        worker.start()
+        while worker.is_alive():
+            worker.join(0.05)
+    finally:
+        for s, h in before.items():
+            signal.signal(s, h)
+    ok, value = result[0]
+    if not ok:
+        raise value
+    return value
 
 
 if __name__ == "__main__":

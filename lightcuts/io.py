@@ -1,6 +1,8 @@
-"""Atomic output: write to a temporary name in the target folder, then rename.
+"""Atomic output: write to a temporary name in the target folder, then rename; a run's set of
+files is written into a temporary folder that replaces the output folder as a whole.
 
-A reader never sees a half-written file; an interrupted run leaves no partial output behind.
+A reader never sees a half-written file or a mix of two runs' files; an interrupted or failed run
+leaves no partial output and no temporary behind.
 """
 
 from __future__ import annotations
@@ -8,11 +10,51 @@ from __future__ import annotations
 import contextlib
 import json
 import os
-import tempfile
+import secrets
+import shutil
+import threading
 from pathlib import Path
 from typing import Iterator
 
 import numpy as np
+
+from lightcuts.errors import LightcutsError
+
+#: The files a run may write into its output folder: a folder holding anything else is not
+#: replaced (an ``--out`` naming a folder of the user's is refused before any work).
+OUTPUT_FILES = frozenset({"image.exr", "image.png", "cutsize.png", "report.json", "reference.exr",
+                          "reference.png", "scaling.csv", "scaling.png"})
+
+# Temporary files and folders of this process, removed by remove_temporaries (the signal handler
+# of lightcuts.cli). The lock makes creating a temporary, or swapping an output set into place, and
+# that removal exclude each other: an interrupt sees either the old set or the new one.
+_LOCK = threading.RLock()
+_TEMPORARIES: set[Path] = set()
+
+
+def _temp_name(path: Path, tag: str) -> Path:
+    return path.with_name(f".{path.name}.{tag}-{secrets.token_hex(4)}")
+
+
+def remove_temporaries() -> None:
+    """Remove every temporary file and folder this process has open; takes the lock and keeps it,
+    for a caller that ends the process next (no temporary is made after this)."""
+    _LOCK.acquire()
+    for p in list(_TEMPORARIES):
+        _remove(p)
+    _TEMPORARIES.clear()
+
+
+def _remove(p: Path) -> None:
+    for _ in range(3):
+        try:
+            if p.is_dir() and not p.is_symlink():
+                shutil.rmtree(p)
+            else:
+                p.unlink(missing_ok=True)
+            return
+        except OSError:
+            continue
 
 
 @contextlib.contextmanager
@@ -20,20 +62,150 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
     """Yield a temporary path beside ``path``; rename it onto ``path`` when the block succeeds.
 
     ``suffix`` keeps the extension that some writers look at (``.png``, ``.exr``); defaults to the
-    target's own suffix.
+    target's own suffix. The temporary is created empty with mode 0666 less the umask, like any
+    new file, and removed if the block fails or the process is interrupted.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix if suffix is not None else path.suffix,
-                               dir=path.parent)
-    os.close(fd)
-    tmp = Path(tmp)
+    suffix = suffix if suffix is not None else path.suffix
+    with _LOCK:
+        while True:
+            tmp = path.with_name(f".{path.name}.{secrets.token_hex(4)}{suffix}")
+            try:
+                os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
+                break
+            except FileExistsError:
+                continue
+        _TEMPORARIES.add(tmp)
     try:
         yield tmp
-        os.replace(tmp, path)
+        with _LOCK:
+            os.replace(tmp, path)
+            _TEMPORARIES.discard(tmp)
     finally:
-        if tmp.exists():
-            tmp.unlink()
+        with _LOCK:
+            if tmp in _TEMPORARIES:
+                _remove(tmp)
+                _TEMPORARIES.discard(tmp)
+
+
+def check_output_dir(path: str | os.PathLike, key: str) -> Path:
+    """LightcutsError naming ``key`` unless ``path`` can become a run's output folder: it is a
+    folder holding only OUTPUT_FILES, or it can be created in a writable folder (checked before
+    any work, so that a render does not fail at its end)."""
+    path = Path(path)
+    if path.exists() or path.is_symlink():
+        if not path.is_dir():
+            raise LightcutsError(f"{key} {str(path)!r}: exists and is not a folder")
+        other = sorted(p.name for p in path.iterdir() if p.name not in OUTPUT_FILES)
+        if other:
+            raise LightcutsError(f"{key} {str(path)!r}: the folder holds files that are not a run's outputs "
+                                 f"({', '.join(other[:3])}{', ...' if len(other) > 3 else ''}); "
+                                 "give a new or empty folder")
+    check_creatable(path.absolute().parent, key, path)
+    return path
+
+
+def check_output_file(path: str | os.PathLike, key: str) -> Path:
+    """LightcutsError naming ``key`` unless a file can be written at ``path`` (not a folder; its
+    folder exists, or can be created, and is writable)."""
+    path = Path(path)
+    if path.is_dir():
+        raise LightcutsError(f"{key} {str(path)!r}: is a folder")
+    check_creatable(path.absolute().parent, key, path)
+    return path
+
+
+def check_creatable(folder: Path, key: str, target: Path) -> None:
+    """``folder`` is, or can be made, a writable folder: its nearest existing ancestor is a
+    writable folder."""
+    p = folder
+    while not (p.exists() or p.is_symlink()):
+        p = p.parent
+    if not p.is_dir():
+        raise LightcutsError(f"{key} {str(target)!r}: {str(p)!r} is not a folder")
+    if not os.access(p, os.W_OK | os.X_OK):
+        raise LightcutsError(f"{key} {str(target)!r}: cannot write in {str(p)!r} (permission denied)")
+
+
+@contextlib.contextmanager
+def output_set(path: str | os.PathLike) -> Iterator[Path]:
+    """Yield a temporary folder beside the output folder ``path``; when the block succeeds, it
+    replaces ``path`` as a whole (the old folder is renamed away, the new one renamed in, the old
+    one removed), so ``path`` holds one run's complete files or the previous run's, untouched.
+    The temporary folder is removed if the block fails or the process is interrupted."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with _LOCK:
+        tmp = _temp_name(path, "new")
+        os.mkdir(tmp, 0o777)
+        _TEMPORARIES.add(tmp)
+    try:
+        yield tmp
+        with _LOCK:
+            old = None
+            if path.exists():
+                old = _temp_name(path, "old")
+                os.rename(path, old)
+            try:
+                os.rename(tmp, path)
+            except OSError:
+                if old is not None:
+                    os.rename(old, path)
+                raise
+            _TEMPORARIES.discard(tmp)
+            if old is not None:
+                _TEMPORARIES.add(old)
+        if old is not None:
+            with _LOCK:
+                _remove(old)
+                _TEMPORARIES.discard(old)
+    finally:
+        with _LOCK:
+            if tmp in _TEMPORARIES:
+                _remove(tmp)
+                _TEMPORARIES.discard(tmp)
+
+
+def read_npz(path: str | os.PathLike, what: str) -> dict[str, np.ndarray]:
+    """Every array of the ``.npz`` file ``path``, read now (nothing is unpickled); LightcutsError
+    naming the file (and the key) if it is not a readable ``.npz`` of plain arrays. ``what`` names
+    the kind of file in messages (``light``, ``tree``)."""
+    path = Path(path)
+    if not path.is_file():
+        raise LightcutsError(f"{path}: no such {what} file")
+    try:
+        with open(path, "rb") as f:
+            magic = f.read(6)
+    except OSError as exc:
+        raise LightcutsError(f"{path}: cannot read {what} file ({exc.strerror or exc})") from None
+    if magic == b"\x93NUMPY":
+        raise LightcutsError(f"{path}: not a .npz {what} file (a single .npy array)")
+    if not magic.startswith(b"PK"):
+        raise LightcutsError(f"{path}: not a .npz {what} file (not a zip archive)")
+    try:
+        z = np.load(path, allow_pickle=False)
+    except Exception as exc:
+        raise LightcutsError(f"{path}: not a .npz {what} file ({one_line(exc)})") from None
+    if not isinstance(z, np.lib.npyio.NpzFile):
+        raise LightcutsError(f"{path}: not a .npz {what} file")
+    out = {}
+    with z:
+        for k in z.files:
+            try:
+                out[k] = z[k]
+            except Exception as exc:
+                raise LightcutsError(f"{path}: {k}: cannot be read ({one_line(exc)})") from None
+    for k, a in out.items():
+        if a.dtype.kind not in "biufUS":
+            raise LightcutsError(f"{path}: {k}: has dtype {a.dtype}; expected numbers or text")
+    return out
+
+
+def one_line(exc: BaseException) -> str:
+    """The first line of an exception's message (at most 200 characters), for one-line errors."""
+    text = str(exc).strip().splitlines()
+    return text[0][:200] if text else type(exc).__name__
 
 
 def save_npz(path: str | os.PathLike, **arrays) -> Path:

@@ -2,7 +2,21 @@
 
 SLOT_BITS : low bits of a lightcut heap entry that hold its slot (lightcuts.render.heap)
 MAX_CUT : the largest cut, since the cut's scratch holds max_cut + 2 slots
+MAX_COORD : the largest magnitude of a position, a config number or ``tree.c``, and MAX_INTENSITY
+    of a light's intensity (per channel): with |x| <= 1e30 a box's squared diagonal L^2 and c^2 stay
+    below 1.3e61, so the largest metric, I (L^2 + c^2 S^2)^2 summed over up to 1e10 lights of at most
+    1e100, stays below 1e233, far from float64's 1.8e308 (an infinite cost would leave a builder
+    with no pair to merge); float32 copies of positions (the kd-tree's nodes) stay finite too
+MAX_SEED : the largest seed, since the kernels take it as an int64
+MAX_PIXELS : the largest image (and environment map), width x height: 2**25 pixels, 33.5 million
+    (e.g. 8192 x 4096); the render's buffers take about 60 bytes a pixel
+MAX_EXPOSURE : the largest |render.exposure| in stops, so that 2**exposure is a normal float64
 """
 
 SLOT_BITS = 20
 MAX_CUT = (1 << SLOT_BITS) - 2
+MAX_COORD = 1e30
+MAX_INTENSITY = 1e100
+MAX_SEED = 2**63 - 1
+MAX_PIXELS = 1 << 25
+MAX_EXPOSURE = 1000.0

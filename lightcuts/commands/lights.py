@@ -21,7 +21,10 @@ def run(args) -> int:
     from lightcuts.commands.plan import plan_run
     from lightcuts.config import load_config
 
+    from lightcuts.io import check_output_file
+
     plan = plan_run(load_config(args.config, args.overrides))
+    check_output_file(args.out, "--out")
     t0 = time.perf_counter()
     light_sets = plan.lights(plan.scene())
     dt = time.perf_counter() - t0

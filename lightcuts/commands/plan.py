@@ -79,6 +79,14 @@ def plan_run(cfg: RunConfig, *, render: bool = False, tree: TreeSpec | None = No
         usable = [e.name for e in RAY_CASTERS.entries() if e.trait("kernel_callable", False)]
         raise LightcutsError(f"render.ray_caster: {caster.name!r} cannot be called from the render kernels; "
                              f"use one of {', '.join(usable)}")
+    if render and cfg.render.crop is not None:
+        from types import SimpleNamespace
+
+        from lightcuts.render.camera import check_crop
+        from lightcuts.scene.build import image_size
+
+        width, height = image_size(cfg)
+        check_crop(cfg.render.crop, SimpleNamespace(width=width, height=height))
     return Plan(cfg, tree, caster)
 
 

@@ -1,6 +1,6 @@
 """``lightcuts render CONFIG``: config -> plan -> scene -> lights -> trees -> image, outputs and report.
 
-Outputs in ``renders/<name>/`` (or ``--out``), each written atomically:
+Outputs in ``renders/<name>/`` (or ``--out``), written as one set (:func:`lightcuts.io.output_set`):
 ``image.exr`` (linear float RGB), ``image.png`` (sRGB, ``render.exposure`` stops), ``cutsize.png``
 (false-colour cut size per pixel), ``report.json``; with ``--reference`` also ``reference.exr`` and
 ``reference.png``, and the lightcuts-vs-reference error in the report.
@@ -37,10 +37,12 @@ def run_render(args) -> dict:
     """Run a render as the CLI does; returns the report dict (also written to report.json)."""
     from lightcuts.commands.plan import plan_run
     from lightcuts.commands.warmup import cold_kernels, finish_warmup, start_render_warmup
+    from lightcuts.io import check_output_dir
 
     cfg = load_config(args.config, args.overrides)  # every config error surfaces here, before any work
     plan = plan_run(cfg, render=True)
-    out_dir = Path(args.out) if args.out else Path("renders") / cfg.name
+    out_dir = check_output_dir(Path(args.out) if args.out else Path("renders") / cfg.name,
+                               "--out" if args.out else "name")
     warmup = None
     if cold_kernels():
         print("compiling numba kernels once; later runs load them from the cache",
@@ -57,7 +59,7 @@ def _run(args, cfg, plan, out_dir: Path, warmup) -> dict:
     from lightcuts import __version__
     from lightcuts.commands.plan import tree_meta
     from lightcuts.commands.warmup import finish_warmup
-    from lightcuts.io import save_json
+    from lightcuts.io import output_set, save_json
     from lightcuts.render.integrator import render_image, render_reference
     from lightcuts.report.images import relative_error, write_exr, write_heatmap, write_png
 
@@ -127,24 +129,25 @@ def _run(args, cfg, plan, out_dir: Path, warmup) -> dict:
         "machine": platform.machine(),
     }
 
-    write_exr(out_dir / "image.exr", result.image)
-    write_png(out_dir / "image.png", result.image, cfg.render.exposure)
-    write_heatmap(out_dir / "cutsize.png", result.cut_size,
-                  title=f"{cfg.name}: {used['builder']}, eps {cfg.render.eps:g}, "
-                        f"mean cut {report['cut_size_mean']:.0f}")
+    with output_set(out_dir) as tmp_dir:
+        write_exr(tmp_dir / "image.exr", result.image)
+        write_png(tmp_dir / "image.png", result.image, cfg.render.exposure)
+        write_heatmap(tmp_dir / "cutsize.png", result.cut_size,
+                      title=f"{cfg.name}: {used['builder']}, eps {cfg.render.eps:g}, "
+                            f"mean cut {report['cut_size_mean']:.0f}")
 
-    if args.reference:
-        with progress_bar(rows, f"{cfg.name}: reference", args.no_progress) as bar:
-            t0 = time.perf_counter()
-            ref = render_reference(scene, caster, light_sets, progress=bar.update, **common)
-            t_ref = time.perf_counter() - t0
-        write_exr(out_dir / "reference.exr", ref.image)
-        write_png(out_dir / "reference.png", ref.image, cfg.render.exposure)
-        report["reference"] = {"render_seconds": t_ref, "shadow_rays": int(ref.shadow_rays),
-                               "speedup": t_ref / max(t_render, 1e-9),
-                               "relative_error": relative_error(result.image, ref.image)}
+        if args.reference:
+            with progress_bar(rows, f"{cfg.name}: reference", args.no_progress) as bar:
+                t0 = time.perf_counter()
+                ref = render_reference(scene, caster, light_sets, progress=bar.update, **common)
+                t_ref = time.perf_counter() - t0
+            write_exr(tmp_dir / "reference.exr", ref.image)
+            write_png(tmp_dir / "reference.png", ref.image, cfg.render.exposure)
+            report["reference"] = {"render_seconds": t_ref, "shadow_rays": int(ref.shadow_rays),
+                                   "speedup": t_ref / max(t_render, 1e-9),
+                                   "relative_error": relative_error(result.image, ref.image)}
 
-    save_json(out_dir / "report.json", report)
+        save_json(tmp_dir / "report.json", report)
     line = (f"{cfg.name}: {report['resolution'][0]}x{report['resolution'][1]}, "
             f"{sum(len(ls) for ls in light_sets.values())} lights, builder {used['builder']}: "
             f"cut {report['cut_size_mean']:.1f} avg / {report['cut_size_max']:.0f} max, "

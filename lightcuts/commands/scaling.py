@@ -4,7 +4,8 @@ For every size N, the config's scene gets N indirect VPLs (``lights.indirect.cou
 lights, no sun or environment); every builder builds a tree over them (``build_tree``: topology plus
 bounds, cones, intensities and representatives), once to warm up numba and then ``repeats`` timed
 runs, of which the median is reported. Each builder gets only the config's metric and c that it
-reads. Outputs, written atomically to ``--out`` (default ``renders/<name>-scaling/``):
+reads. Outputs, written as one set (:func:`lightcuts.io.output_set`) to ``--out`` (default
+``renders/<name>-scaling/``):
 
 - ``scaling.csv``: n_requested, n_lights, builder, median_s, min_s, repeats, depth;
 - ``scaling.png``: log-log build time against N per builder, O(N) and O(N^2) trend lines, and each
@@ -88,7 +89,7 @@ def run_scaling(args) -> list[dict]:
     """
     from lightcuts.commands.plan import plan_run
     from lightcuts.config import load_config
-    from lightcuts.io import save_csv
+    from lightcuts.io import check_output_dir, output_set, save_csv
     from lightcuts.report.scaling import CSV_FIELDS, format_table, plot_scaling
 
     sizes = parse_sizes(args.sizes)
@@ -102,7 +103,8 @@ def run_scaling(args) -> list[dict]:
     for spec in specs:
         spec.check_size(max(sizes), "--builders")
     plan = plan_run(cfg, tree=specs[0])
-    out = Path(args.out) if args.out else Path("renders") / f"{cfg.name}-scaling"
+    out = check_output_dir(Path(args.out) if args.out else Path("renders") / f"{cfg.name}-scaling",
+                           "--out" if args.out else "name")
     scene = plan.scene()
     caster = plan.make_caster(scene)
 
@@ -122,10 +124,11 @@ def run_scaling(args) -> list[dict]:
                 rows.append(dict(n_requested=n, n_lights=len(lights), builder=spec.name, median_s=med, min_s=best,
                                  repeats=repeats, depth=depth))
                 bar.update(1)
-    save_csv(out / "scaling.csv", rows, CSV_FIELDS)
     metric = next((s.metric.name for s in specs if s.metric is not None), None)
-    plot_scaling(out / "scaling.png", rows, f"{cfg.name}: light tree build time"
-                 f"{f' ({metric})' if metric else ''}, median of {repeats}")
+    with output_set(out) as tmp:
+        save_csv(tmp / "scaling.csv", rows, CSV_FIELDS)
+        plot_scaling(tmp / "scaling.png", rows, f"{cfg.name}: light tree build time"
+                     f"{f' ({metric})' if metric else ''}, median of {repeats}")
     print(format_table(rows))
     print(f"-> {out / 'scaling.csv'}, {out / 'scaling.png'}")
     return rows

@@ -7,6 +7,7 @@ from pathlib import Path
 
 from lightcuts.commands.common import add_set, per_type_path
 from lightcuts.errors import LightcutsError
+from lightcuts.limits import MAX_SEED
 
 
 def add_parser(sub) -> None:
@@ -53,7 +54,12 @@ def run(args) -> int:
         from lightcuts.config import load_config
 
         cfg = load_config(args.config, args.overrides)
+    from lightcuts.io import check_output_file
+
     spec = _spec(args, cfg)  # every name and combination fails here, before any work
+    check_output_file(args.out, "--out")
+    if args.seed is not None and not 0 <= args.seed <= MAX_SEED:
+        raise LightcutsError(f"--seed {args.seed}: must be in [0, {MAX_SEED}]")
     seed = args.seed if args.seed is not None else (cfg.seed if cfg else 0)
 
     if args.lights:

@@ -15,6 +15,18 @@ import os
 import subprocess
 import sys
 
+#: The child: on Linux it asks to be killed with its parent (a command stopped by a signal exits at
+#: once), then compiles the render kernel.
+_CHILD = """
+try:
+    import ctypes, signal
+    ctypes.CDLL(None).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+except Exception:
+    pass
+from lightcuts.render.integrator import warm_kernels
+warm_kernels()
+"""
+
 #: Longest wait for the child before the render compiles the kernel itself, seconds.
 WARMUP_TIMEOUT = 600.0
 
@@ -51,8 +63,7 @@ def start_render_warmup() -> subprocess.Popen | None:
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join([root] + [p for p in [env.get("PYTHONPATH")] if p])
     try:
-        return subprocess.Popen([sys.executable, "-c", "from lightcuts.render.integrator import warm_kernels; "
-                                 "warm_kernels()"], env=env, stdin=subprocess.DEVNULL,
+        return subprocess.Popen([sys.executable, "-c", _CHILD], env=env, stdin=subprocess.DEVNULL,
                                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     except OSError:
         return None

@@ -23,9 +23,12 @@ from pathlib import Path
 import numpy as np
 
 from lightcuts.errors import LightcutsError
-from lightcuts.io import save_npz
+from lightcuts.io import read_npz, save_npz
+from lightcuts.limits import MAX_COORD, MAX_INTENSITY
 
 LIGHT_TYPES = ("omni", "oriented", "directional")
+# Metadata that builders compute with (lightcuts.trees.build.default_c), checked on reading.
+_NUMERIC_META = ("scene_diagonal", "diagonal")
 
 # Rec. 709 / sRGB luminance weights: scalar intensity for metrics, representatives and eps.
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
@@ -109,32 +112,40 @@ class LightSet:
     def load(cls, path) -> "LightSet":
         """Read a light file; LightcutsError naming the file and the problem if it is malformed."""
         path = Path(path)
-        if not path.is_file():
-            raise LightcutsError(f"{path}: no such light file")
-        try:
-            z = np.load(path, allow_pickle=False)
-        except Exception as exc:
-            raise LightcutsError(f"{path}: not a .npz light file ({exc})") from None
-        with z:
-            missing = [k for k in ("position", "normal", "intensity", "type") if k not in z]
-            if missing:
-                raise LightcutsError(f"{path}: missing key(s) {', '.join(missing)}")
-            arrays = {k: z[k] for k in ("position", "normal", "intensity")}
-            for k, a in arrays.items():
-                if a.ndim != 2 or a.shape[1] != 3:
-                    raise LightcutsError(f"{path}: {k} has shape {a.shape}, expected (N, 3)")
-                if not np.issubdtype(a.dtype, np.number) or not np.all(np.isfinite(a)):
-                    raise LightcutsError(f"{path}: {k} has non-finite or non-numeric values")
-            if np.any(arrays["intensity"] < 0):
-                raise LightcutsError(f"{path}: intensity has negative values")
-            typ = str(z["type"])
-            if typ not in LIGHT_TYPES:
-                raise LightcutsError(f"{path}: type {typ!r} is not one of {', '.join(LIGHT_TYPES)}")
-            indirect = z["indirect"] if "indirect" in z else None
-            meta = {k[5:]: z[k].item() if z[k].ndim == 0 else z[k] for k in z.files if k.startswith("meta_")}
-            n = len(arrays["position"])
-            if len(arrays["normal"]) != n or len(arrays["intensity"]) != n:
-                raise LightcutsError(f"{path}: position, normal and intensity differ in length")
-            if n == 0:
-                raise LightcutsError(f"{path}: holds no lights")
+        z = read_npz(path, "light")
+        missing = [k for k in ("position", "normal", "intensity", "type") if k not in z]
+        if missing:
+            raise LightcutsError(f"{path}: missing key(s) {', '.join(missing)}")
+        arrays = {k: z[k] for k in ("position", "normal", "intensity")}
+        for k, a in arrays.items():
+            if a.ndim != 2 or a.shape[1] != 3:
+                raise LightcutsError(f"{path}: {k} has shape {a.shape}, expected (N, 3)")
+            if a.dtype.kind not in "biuf" or not np.all(np.isfinite(a)):
+                raise LightcutsError(f"{path}: {k} has non-finite or non-numeric values")
+        if np.any(arrays["intensity"] < 0):
+            raise LightcutsError(f"{path}: intensity has negative values")
+        for k, limit in (("position", MAX_COORD), ("intensity", MAX_INTENSITY)):
+            if arrays[k].size and float(np.abs(arrays[k]).max()) > limit:
+                raise LightcutsError(f"{path}: {k} has values beyond {limit:g} in magnitude "
+                                     "(the clustering metric would overflow)")
+        if z["type"].ndim != 0 or z["type"].dtype.kind != "U":
+            raise LightcutsError(f"{path}: type must be a 0-d string, one of {', '.join(LIGHT_TYPES)}")
+        typ = str(z["type"])
+        if typ not in LIGHT_TYPES:
+            raise LightcutsError(f"{path}: type {typ!r} is not one of {', '.join(LIGHT_TYPES)}")
+        indirect = z.get("indirect")
+        n = len(arrays["position"])
+        if indirect is not None and (indirect.dtype.kind not in "biu" or indirect.shape != (n,)):
+            raise LightcutsError(f"{path}: indirect must be (N,) bool, got {indirect.dtype} {indirect.shape}")
+        if len(arrays["normal"]) != n or len(arrays["intensity"]) != n:
+            raise LightcutsError(f"{path}: position, normal and intensity differ in length")
+        if n == 0:
+            raise LightcutsError(f"{path}: holds no lights")
+        meta = {}
+        for k, a in z.items():
+            if not k.startswith("meta_"):
+                continue
+            if k[5:] in _NUMERIC_META and (a.ndim != 0 or a.dtype.kind not in "biuf" or not np.isfinite(a)):
+                raise LightcutsError(f"{path}: {k} must be a finite number, got {a.dtype} {a.shape}")
+            meta[k[5:]] = a.item() if a.ndim == 0 else a
         return cls(arrays["position"], arrays["normal"], arrays["intensity"], typ, indirect, meta)

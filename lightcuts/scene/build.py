@@ -19,6 +19,7 @@ import numpy as np
 
 from lightcuts.config.schema import CameraConfig, RunConfig
 from lightcuts.errors import LightcutsError
+from lightcuts.scene.cornell import RESOLUTION as CORNELL_RESOLUTION
 from lightcuts.scene.cornell import cornell_box
 from lightcuts.scene.loaders import concatenate_scenes, load_mesh
 from lightcuts.scene.scene import Camera, Scene
@@ -28,6 +29,18 @@ DEFAULT_RESOLUTION = (512, 512)
 
 #: Built-in scenes by ``scene.builtin`` name: factory(materials overrides) -> Scene with a camera.
 BUILTINS: dict[str, Callable[..., Scene]] = {"cornell": cornell_box}
+#: Their cameras' (width, height), pixels, known without building them.
+BUILTIN_RESOLUTIONS = {"cornell": tuple(CORNELL_RESOLUTION)}
+
+
+def image_size(cfg: RunConfig) -> tuple[int, int]:
+    """The (width, height) of the image ``cfg`` renders, in pixels, from the config alone (the
+    camera's precedence, see the module docstring), for checks before any scene is built."""
+    if cfg.camera.resolution is not None:
+        return tuple(cfg.camera.resolution)
+    if cfg.scene.builtin is not None:
+        return BUILTIN_RESOLUTIONS[cfg.scene.builtin]
+    return DEFAULT_RESOLUTION
 
 
 def framing_camera(bounds: np.ndarray, fov: float = DEFAULT_FOV, width: int = DEFAULT_RESOLUTION[0],

@@ -21,6 +21,7 @@ Lengths are kept in the file's units; place meshes with ``scale``/``rotate``/``t
 
 from __future__ import annotations
 
+import io
 import math
 import os
 import warnings
@@ -202,6 +203,20 @@ def _file_material(geometry, obj_materials: dict | None) -> tuple[np.ndarray, np
     return albedo, specular, exponent, emission
 
 
+def _obj_text(path: Path) -> str:
+    """An OBJ file's text: UTF-8 if it decodes so, else Latin-1, which maps every byte to a character.
+
+    OBJ keywords and numbers are ASCII, so any 8-bit encoding only differs in comments and names.
+    trimesh would otherwise guess the encoding of non-UTF-8 bytes with ``charset_normalizer``, an
+    optional dependency; decoding here keeps the loader to the installed packages.
+    """
+    raw = path.read_bytes()
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError:
+        return raw.decode("latin-1")
+
+
 def load_mesh(path, scale: float | Sequence[float] = 1.0, rotate: Sequence[float] = (0.0, 0.0, 0.0),
               translate: Sequence[float] = (0.0, 0.0, 0.0), material: Material | Mapping | None = None,
               key: str = "scene.meshes.0") -> Scene:
@@ -258,7 +273,11 @@ def load_mesh(path, scale: float | Sequence[float] = 1.0, rotate: Sequence[float
     if ext == ".obj":
         options = {"resolver": mtl} if mtl is not None else {"skip_materials": True}
     try:
-        loaded = trimesh.load(str(path), force="scene", process=False, **options)
+        if ext == ".obj":
+            loaded = trimesh.load(io.BytesIO(_obj_text(path).encode("utf-8")), file_type="obj", force="scene",
+                                  process=False, **options)
+        else:
+            loaded = trimesh.load(str(path), force="scene", process=False, **options)
     except Exception as exc:  # trimesh raises many types on malformed files
         raise LightcutsError(f"{where}: cannot read mesh ({type(exc).__name__}: {exc})".splitlines()[0]) from None
     if mtl is not None:

@@ -267,6 +267,9 @@ def _locally_ordered(position, normal, luminance, order, metric_id, has_cone, us
                    use_cone, c, SEARCH_CHUNK)
         new0 = int(counters[C_NEXT])
         n_todo = _pair_round(kd, todo, n_todo, todo_next, best, best_d, head, nxt, left, right, pair_sub, counters)
+        if int(counters[C_NEXT]) == new0:
+            raise LightcutsError("builder 'agglomerative': a round merged no pair (a cost is infinite or NaN); "
+                                 "check the lights' and tree.c's magnitudes")
         _merge_pairs(kd, left, right, new0, int(counters[C_NEXT]) - new0, pair_sub, parallel_min)
         # Between rounds, so that the rebuild runs on the threads too.
         if kd_wants_rebuild(kd):
@@ -275,10 +278,11 @@ def _locally_ordered(position, normal, luminance, order, metric_id, has_cone, us
     return left, right, light, counters
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _agglomerate_heap(position, normal, luminance, order, metric_id, has_cone, use_cone, c, leafsize):
     """Fig. 3: ``(left, right, light, stats)``, leaves as cluster ids (Morton order); ``stats`` =
-    [kd-tree searches, stale heap entries skipped]."""
+    [kd-tree searches, stale heap entries skipped]. Stops early, with ``left[2N-2] = -1``, if a
+    search finds no partner (an infinite or NaN cost), which would otherwise repeat forever."""
     n = position.shape[0]
     k = 2 * n - 1
     left = np.full(k, -1, np.int32)
@@ -309,6 +313,8 @@ def _agglomerate_heap(position, normal, luminance, order, metric_id, has_cone, u
         if slot_of[a] < 0:
             stats[1] += 1
             continue
+        if b < 0:
+            break
         if slot_of[b] < 0:
             b, d = kd_best_match(kd, a, metric_id, has_cone, use_cone, c)
             stats[0] += 1
@@ -421,6 +427,9 @@ def agglomerative_stats(position, normal, luminance, light_type: str, metric: Me
     order = morton_order(args[0])
     if heap:
         left, right, light, st = _agglomerate_heap(*args[:3], order, *args[3:], int(leafsize))
+        if n > 1 and left[-1] < 0:
+            raise LightcutsError("builder 'agglomerative-heap': a cluster found no partner (a cost is infinite or "
+                                 "NaN); check the lights' and tree.c's magnitudes")
         stats = {"searches": int(st[0]), "stale": int(st[1])}
     else:
         left, right, light, st = _locally_ordered(*args[:3], order, *args[3:], int(leafsize), int(parallel_min))

@@ -26,6 +26,7 @@ from numba import njit
 
 from lightcuts.errors import LightcutsError
 from lightcuts.hashing import mix64 as _mix64
+from lightcuts.limits import MAX_COORD, MAX_INTENSITY
 from lightcuts.lights.lightset import LUMINANCE, LightSet
 from lightcuts.parallel import balance, on_threads, run_all, threads_for
 from lightcuts.trees.bounds import box_union, points_box, row3, set_row3
@@ -56,9 +57,12 @@ def default_c(lights: LightSet) -> float:
     diag = None
     key = next((k for k in _DIAGONAL_KEYS if k in lights.meta), None)
     if lights.type != "directional" and key is not None:
-        diag = float(lights.meta[key])
-        if not np.isfinite(diag) or diag < 0:
-            raise LightcutsError(f"lights: meta {key} = {diag} is not a finite non-negative number")
+        try:
+            diag = float(lights.meta[key])
+        except (TypeError, ValueError):
+            raise LightcutsError(f"lights: meta {key} = {lights.meta[key]!r} is not a number") from None
+        if not 0 <= diag <= 16 * MAX_COORD:
+            raise LightcutsError(f"lights: meta {key} = {diag} is not a number in [0, {16 * MAX_COORD:g}]")
     if diag is None:
         diag = _box_diagonal(np.ascontiguousarray(lights.position, np.float64))
     return diag / 16.0 if diag > 0 else 1.0
@@ -89,6 +93,11 @@ def _check_lights(lights: LightSet) -> tuple[np.ndarray, np.ndarray]:
             raise LightcutsError(f"lights: {key} has non-finite values")
     if negative:
         raise LightcutsError("lights: intensity has negative values")
+    # Within these bounds no metric overflows (lightcuts.limits), so every builder finds a pair.
+    for key, arr, limit in (("position", lights.position, MAX_COORD), ("intensity", lights.intensity, MAX_INTENSITY)):
+        if len(arr) and float(np.abs(arr).max()) > limit:
+            raise LightcutsError(f"lights: {key} has values beyond {limit:g} in magnitude "
+                                 "(the clustering metric would overflow)")
     if unit_key is not None and err > _UNIT_TOL:
         what = "normals" if unit_key == "normal" else "directions (position)"
         raise LightcutsError(f"lights: {lights.type} light {unit_key} {worst} is not unit length "

@@ -83,7 +83,7 @@ def _greedy_kernel():
     the module is imported, and every run imports the built-in builders."""
     global _kernel
     if _kernel is None:
-        _kernel = njit(_SIGNATURE, cache=True)(_greedy)
+        _kernel = njit(_SIGNATURE, cache=True, nogil=True)(_greedy)
     return _kernel
 
 

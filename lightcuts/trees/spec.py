@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 from lightcuts.config.schema import DEFAULT_BUILDER, DEFAULT_METRIC
 from lightcuts.errors import LightcutsError
+from lightcuts.limits import MAX_COORD
 from lightcuts.registry import Entry
 from lightcuts.trees.metrics import Metric
 from lightcuts.trees.registry import BUILDERS, METRICS
@@ -52,7 +53,8 @@ def tree_spec(builder: str | Entry | None = None, metric: str | Metric | None = 
     builder : name or entry (default the schema's ``DEFAULT_BUILDER``)
     metric : name or Metric, or None for the schema's ``DEFAULT_METRIC`` if the builder reads one;
         given to a builder that reads no metric, an error
-    c : positive float, or None for the default; given where nothing reads it, an error
+    c : positive float up to ``lightcuts.limits.MAX_COORD``, or None for the default; given where
+        nothing reads it, an error
     keys : how to name builder / metric / c in messages (default the config keys)
     drop_unread : leave out a metric or c that the builder does not read instead of refusing it
         (for commands that run several builders on one config, each with only what it reads)
@@ -87,8 +89,9 @@ def tree_spec(builder: str | Entry | None = None, metric: str | Metric | None = 
                    else f"builder {entry.name!r} reads no c")
             raise LightcutsError(f"{keys['c']}: {why}; remove it")
         c = float(c)
-        if not (c > 0 and c < float("inf")):
-            raise LightcutsError(f"{keys['c']}: {c} must be a positive finite number")
+        if not (0 < c <= MAX_COORD):
+            raise LightcutsError(f"{keys['c']}: {c} must be a positive number up to {MAX_COORD:g} "
+                                 "(larger values would overflow the metric)")
     return TreeSpec(entry, m, c, reads_c)
 
 

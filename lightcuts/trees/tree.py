@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from lightcuts.errors import LightcutsError
-from lightcuts.io import save_npz
+from lightcuts.io import one_line, read_npz, save_npz
 
 TREE_KEYS = ("left", "right", "light", "bbox_min", "bbox_max", "cone_axis", "cone_cos", "intensity", "rep")
 
@@ -97,16 +97,22 @@ class LightTree:
 
     @classmethod
     def load(cls, path) -> "LightTree":
+        """Read a tree file; LightcutsError naming the file and the key if it is malformed."""
         path = Path(path)
-        if not path.is_file():
-            raise LightcutsError(f"{path}: no such tree file")
+        z = read_npz(path, "tree")
+        missing = [k for k in TREE_KEYS + ("root",) if k not in z]
+        if missing:
+            raise LightcutsError(f"{path}: missing key(s) {', '.join(missing)}")
+        for k in TREE_KEYS + ("root",):
+            if z[k].dtype.kind not in "biuf":
+                raise LightcutsError(f"{path}: {k} has dtype {z[k].dtype}; expected numbers")
+        if z["root"].size != 1:
+            raise LightcutsError(f"{path}: root must be one integer, got shape {z['root'].shape}")
+        meta = {k[5:]: a.item() if a.ndim == 0 else a for k, a in z.items() if k.startswith("meta_")}
         try:
-            z = np.load(path, allow_pickle=False)
-        except Exception as exc:
-            raise LightcutsError(f"{path}: not a .npz tree file ({exc})") from None
-        with z:
-            missing = [k for k in TREE_KEYS + ("root",) if k not in z]
-            if missing:
-                raise LightcutsError(f"{path}: missing key(s) {', '.join(missing)}")
-            meta = {k[5:]: z[k].item() if z[k].ndim == 0 else z[k] for k in z.files if k.startswith("meta_")}
-            return cls(*(z[k] for k in TREE_KEYS), int(z["root"]), meta)
+            return cls(*(z[k] for k in TREE_KEYS), int(z["root"].reshape(())), meta)
+        except LightcutsError:
+            raise
+        except (TypeError, ValueError, IndexError) as exc:
+            raise LightcutsError(f"{path}: malformed tree ({one_line(exc)})") from None
+
