@@ -13,7 +13,6 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-import lightcuts.accel.embree  # noqa: F401  (registers the built-in casters)
 from lightcuts.accel import RAY_CASTERS, make_caster
 from lightcuts.config.schema import config_from_dict
 from lightcuts.errors import LightcutsError
