@@ -38,6 +38,9 @@ _SIGNALS = {signal.SIGINT: (130, "interrupted"), signal.SIGTERM: (143, "terminat
 
 
 def _run(args) -> int:
+    from lightcuts.commands.warmup import announce_compiles
+
+    announce_compiles()
     try:
         return args.func(args)
     except LightcutsError as exc:

@@ -62,3 +62,18 @@ def test_help_lists_commands(tmp_path):
     assert r.returncode == 0
     for c in ("lights", "tree", "scaling", "render"):
         assert c in r.stdout
+
+
+def test_compile_notice_on_a_cold_cache_only(tmp_path):
+    """The first-compile notice appears once when numba compiles, and not when it loads its cache."""
+    (tmp_path / "kern.py").write_text("from numba import njit\n\n@njit(cache=True)\ndef f(x):\n    return x + 1\n\n"
+                                      "@njit(cache=True)\ndef g(x):\n    return f(x) * 2\n")
+    code = ("import sys; sys.path.insert(0, sys.argv[1])\n"
+            "from lightcuts.commands.warmup import announce_compiles, NOTICE\nannounce_compiles()\n"
+            "import kern; kern.g(1.0); kern.f(2)\n")
+    env = dict(os.environ, PYTHONPATH=str(ROOT), NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+    runs = [subprocess.run([sys.executable, "-c", code, str(tmp_path)], env=env, capture_output=True, text=True,
+                           timeout=300) for _ in range(2)]
+    notice = "compiling numba kernels once; later runs load them from the cache"
+    assert runs[0].returncode == 0 and runs[0].stderr.strip().splitlines() == [notice], runs[0].stderr
+    assert runs[1].returncode == 0 and runs[1].stderr.strip() == "", runs[1].stderr

@@ -9,7 +9,6 @@ Outputs in ``renders/<name>/`` (or ``--out``), written as one set (:func:`lightc
 from __future__ import annotations
 
 import platform
-import sys
 import time
 from pathlib import Path
 
@@ -36,35 +35,32 @@ def run(args) -> int:
 def run_render(args) -> dict:
     """Run a render as the CLI does; returns the report dict (also written to report.json)."""
     from lightcuts.commands.plan import plan_run
-    from lightcuts.commands.warmup import cold_kernels, finish_warmup, start_render_warmup
+    from lightcuts.commands.warmup import finish_warmup
     from lightcuts.io import check_output_dir
 
     cfg = load_config(args.config, args.overrides)  # every config error surfaces here, before any work
     plan = plan_run(cfg, render=True)
     out_dir = check_output_dir(Path(args.out) if args.out else Path("renders") / cfg.name,
                                "--out" if args.out else "name")
-    warmup = None
-    if cold_kernels():
-        print("compiling numba kernels once; later runs load them from the cache",
-              file=sys.stderr, flush=True)
-        if plan.caster.name == "embree":
-            warmup = start_render_warmup()
+    warmup = []  # the child compiling the render kernel, if any
     try:
         return _run(args, cfg, plan, out_dir, warmup)
     finally:
-        finish_warmup(warmup, timeout=0)
+        finish_warmup(warmup[0] if warmup else None, timeout=0)
 
 
-def _run(args, cfg, plan, out_dir: Path, warmup) -> dict:
+def _run(args, cfg, plan, out_dir: Path, warmup: list) -> dict:
     from lightcuts import __version__
     from lightcuts.commands.plan import tree_meta
-    from lightcuts.commands.warmup import finish_warmup
+    from lightcuts.commands.warmup import finish_warmup, start_render_warmup
     from lightcuts.io import output_set, save_json
     from lightcuts.render.integrator import render_image, render_reference
     from lightcuts.report.images import relative_error, write_exr, write_heatmap, write_png
 
     t0 = time.perf_counter()
     scene = plan.scene()
+    if plan.caster.name == "embree":
+        warmup.append(start_render_warmup())  # None where the render kernel is cached
     caster = plan.make_caster(scene)
     envmap = plan.environment()
     light_sets = plan.lights(scene, caster, envmap)
@@ -84,7 +80,7 @@ def _run(args, cfg, plan, out_dir: Path, warmup) -> dict:
     # Load (or compile) the kernels on one pixel first, so that render_seconds and the reference's
     # speed-up measure rendering; the wait for numba is reported on its own.
     t0 = time.perf_counter()
-    finish_warmup(warmup)  # the child compiling the render kernel, if any: the render then loads it
+    finish_warmup(warmup[0] if warmup else None)  # the child compiling the render kernel: then loaded
     x0, y0 = (0, 0) if cfg.render.crop is None else cfg.render.crop[:2]
     render_image(scene, caster, light_sets, trees, eps=cfg.render.eps, max_cut=cfg.render.max_cut,
                  **{**common, "crop": (x0, y0, x0 + 1, y0 + 1)})

@@ -1,4 +1,4 @@
-"""numba's on-disk cache from the commands' side: is it cold, and compiling the render kernel on the side.
+"""numba on the commands' side: a notice when kernels first compile, and the render kernel compiled on the side.
 
 On an empty cache a render spends most of its time compiling kernels (``cache=True``: later runs
 load them). The render kernel (lightcuts.render.integrator) is the largest of them and is needed
@@ -31,6 +31,33 @@ warm_kernels()
 WARMUP_TIMEOUT = 600.0
 
 
+_ANNOUNCING = False
+NOTICE = "compiling numba kernels once; later runs load them from the cache"
+
+
+def announce_compiles() -> None:
+    """Print :data:`NOTICE` to stderr once, when numba first compiles a kernel in this process (not
+    on cache hits: numba's ``numba:compile`` event fires on cache misses only)."""
+    global _ANNOUNCING
+    if _ANNOUNCING:
+        return
+    _ANNOUNCING = True
+    from numba.core import event
+
+    class Once(event.Listener):
+        said = False
+
+        def on_start(self, ev):
+            if not self.said:
+                self.said = True
+                print(NOTICE, file=sys.stderr, flush=True)
+
+        def on_end(self, ev):
+            pass
+
+    event.register("numba:compile", Once())
+
+
 def is_cached(dispatcher) -> bool:
     """Whether numba's cache holds a compiled version of the current source of ``dispatcher``
     (a ``cache=True`` kernel; True when that cannot be told, e.g. caching disabled)."""
@@ -38,17 +65,6 @@ def is_cached(dispatcher) -> bool:
         return bool(dispatcher._cache._cache_file._load_index())
     except Exception:  # numba internals differ, no cache: do not claim the cache is cold
         return True
-
-
-def cold_kernels() -> list[str]:
-    """Names of the render command's main kernels that numba's cache does not hold (one per stage)."""
-    from lightcuts.lights.indirect import _trace_fused
-    from lightcuts.render.integrator import _render_band
-    from lightcuts.trees.build import _fill_ranges
-    from lightcuts.trees.kd_search import kd_search_range
-
-    return [d.py_func.__qualname__ for d in (_trace_fused, kd_search_range, _fill_ranges, _render_band)
-            if not is_cached(d)]
 
 
 def start_render_warmup() -> subprocess.Popen | None:
