@@ -67,8 +67,6 @@ def _run(args, cfg, plan, out_dir: Path, warmup: list) -> dict:
     t_pre = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    for ls in light_sets.values():
-        plan.tree.check_size(len(ls))
     trees = plan.trees(light_sets)
     t_build = time.perf_counter() - t0
     used = tree_meta(trees)
