@@ -7,9 +7,11 @@
   in every octant its box overlaps).
 
 Coplanar piles never drop below ``maxp`` items, so two rules end the recursion: a depth limit
-(``max_depth`` grids on any chain, the top grid counting 1), and a subdivision that separates
-nothing (at least two non-empty sub-voxels and every one of them still holding all the voxel's
-items, or a sub-grid of one voxel) is not made.
+(``max_depth`` grids on any chain, the top grid counting 1), and a voxel is subdivided only if the
+subdivision separates its items: its non-empty sub-voxels hold on average at most ``SEPARATES``
+(one half) of the voxel's items, or only one sub-voxel is non-empty (the items shrink into it). A
+pile of large overlapping coplanar triangles fills every sub-voxel its plane crosses, so it stays
+one voxel instead of multiplying (4 children of 8 at each octree level) down to the depth limit.
 """
 
 from __future__ import annotations
@@ -18,6 +20,10 @@ import numpy as np
 from numba import njit
 
 from lightcuts.accel.grids import GridForest, assemble, cube_root_res, fill_grids
+
+#: A subdivision is made only if its non-empty sub-voxels hold on average at most this fraction
+#: of the voxel's items (or only one sub-voxel is non-empty).
+SEPARATES = 0.5
 
 
 def scene_box(blo: np.ndarray, bhi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -95,8 +101,8 @@ def build_recursive(blo: np.ndarray, bhi: np.ndarray, maxp: int = 50, max_depth:
         nvox = np.diff(v0)
         grid_of = np.repeat(np.arange(len(cand)), nvox)
         nonempty = np.bincount(grid_of, weights=sc > 0, minlength=len(cand))
-        full = np.bincount(grid_of, weights=(sc > 0) & (sc == nitems[grid_of]), minlength=len(cand))
-        accept = ~(((nonempty >= 2) & (full == nonempty)) | (nvox == 1))
+        refs_in = np.bincount(grid_of, weights=sc, minlength=len(cand))
+        accept = ((nonempty == 1) | (refs_in <= SEPARATES * nonempty * nitems)) & (nvox > 1)
         keep_vox = np.repeat(accept, nvox)
         keep_ref = np.repeat(keep_vox, sc)
         split.append(cand[accept])

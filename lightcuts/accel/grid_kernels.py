@@ -57,14 +57,13 @@ def tri_t(tri, f, ox, oy, oz, dx, dy, dz):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _push(data, scratch, base, top, g, t0, t1, o, d, inv, tol, wtol):
-    """Enter grid g over [t0, t1] (clipped to its box, widened by tol): its state on level ``top``;
-    returns the new stack size (unchanged if the ray misses the box)."""
-    glo, ghi, gres, ginv = data[0], data[1], data[2], data[4]
+def _enter(glo, ghi, gres, ginv, g, t0, t1, o, d, inv, tol, wtol):
+    """The ray over [t0, t1] clipped to grid g's box (widened by tol): (t0, t1, ix, iy, iz) of its
+    first voxel, t0 > t1 if it misses the box."""
     for a in range(3):
         if d[a] == 0.0:
             if o[a] < glo[g, a] - wtol or o[a] > ghi[g, a] + wtol:
-                return top
+                return np.inf, -np.inf, 0, 0, 0
         else:
             ta = (glo[g, a] - o[a]) * inv[a]
             tb = (ghi[g, a] - o[a]) * inv[a]
@@ -72,25 +71,16 @@ def _push(data, scratch, base, top, g, t0, t1, o, d, inv, tol, wtol):
                 ta, tb = tb, ta
             t0 = max(t0, ta - tol)
             t1 = min(t1, tb + tol)
-    if t0 > t1:
-        return top
-    s = base + STATE * top
-    scratch[s] = g
-    for a in range(3):
-        i = int(np.floor((o[a] + t0 * d[a] - glo[g, a]) * ginv[g, a]))
-        scratch[s + 1 + a] = min(max(i, 0), gres[g, a] - 1)
-    scratch[s + 4] = -1.0
-    scratch[s + 5] = t0
-    scratch[s + 6] = 0.0
-    scratch[s + 7] = t1
-    scratch[s + 8] = 0.0
-    return top + 1
+    ix = min(max(int(np.floor((o[0] + t0 * d[0] - glo[g, 0]) * ginv[g, 0])), 0), gres[g, 0] - 1)
+    iy = min(max(int(np.floor((o[1] + t0 * d[1] - glo[g, 1]) * ginv[g, 1])), 0), gres[g, 1] - 1)
+    iz = min(max(int(np.floor((o[2] + t0 * d[2] - glo[g, 2]) * ginv[g, 2])), 0), gres[g, 2] - 1)
+    return t0, t1, ix, iy, iz
 
 
 @njit(cache=True, error_model="numpy")
 def traverse(data, scratch, ox, oy, oz, dx, dy, dz, tnear, tfar, any_hit):
     """(t, prim): the closest hit with tnear <= t <= tfar (any hit if ``any_hit``), (inf, -1) if none."""
-    glo, ghi, gres, gcell = data[0], data[1], data[2], data[3]
+    glo, ghi, gres, gcell, ginv = data[0], data[1], data[2], data[3], data[4]
     voxel0, vitems, irefs, vsubs, srefs, tri, meta = data[5], data[6], data[7], data[8], data[9], data[10], data[11]
     if not tfar >= tnear or tri.shape[0] == 0:
         return np.inf, np.int64(-1)
@@ -102,36 +92,38 @@ def traverse(data, scratch, ox, oy, oz, dx, dy, dz, tnear, tfar, any_hit):
     o = (ox, oy, oz)
     d = (dx, dy, dz)
     inv = (1.0 / dx if dx != 0.0 else np.inf, 1.0 / dy if dy != 0.0 else np.inf, 1.0 / dz if dz != 0.0 else np.inf)
+    step = (1 if dx > 0.0 else -1, 1 if dy > 0.0 else -1, 1 if dz > 0.0 else -1)
     scratch[0] += 1.0
     stamp = scratch[0]
     mb = int(meta[2])
     base = 1 + 2 * mb
     best_t = tfar
     best = np.int64(-1)
-    top = _push(data, scratch, base, 0, 0, tnear, tfar, o, d, inv, tol, wtol)
-    while top > 0:
-        s = base + STATE * (top - 1)
-        g = int(scratch[s])
-        i0, i1, i2 = int(scratch[s + 1]), int(scratch[s + 2]), int(scratch[s + 3])
+    # The current grid's state in locals; the grids it is nested in are saved on the stack.
+    g = 0
+    t_enter, t_end, i0, i1, i2 = _enter(glo, ghi, gres, ginv, 0, tnear, tfar, o, d, inv, tol, wtol)
+    if t_enter > t_end:
+        return np.inf, best
+    level = 0
+    cursor = -1
+    t_exit = 0.0
+    axis = 0
+    while True:
         v = voxel0[g] + i0 + gres[g, 0] * (i1 + gres[g, 1] * i2)
-        cursor = int(scratch[s + 4])
         if cursor < 0:
             t_exit = np.inf
-            axis = 0
             for a in range(3):
+                if d[a] == 0.0:
+                    continue
                 i = i0 if a == 0 else (i1 if a == 1 else i2)
                 if d[a] > 0.0:
                     b = ghi[g, a] if i == gres[g, a] - 1 else glo[g, a] + (i + 1) * gcell[g, a]
-                elif d[a] < 0.0:
-                    b = glo[g, a] if i == 0 else glo[g, a] + i * gcell[g, a]
                 else:
-                    continue
+                    b = glo[g, a] if i == 0 else glo[g, a] + i * gcell[g, a]
                 tn = (b - o[a]) * inv[a]
                 if tn < t_exit:
                     t_exit = tn
                     axis = a
-            scratch[s + 6] = t_exit
-            scratch[s + 8] = axis
             for j in range(vitems[v], vitems[v + 1]):
                 f = np.int64(irefs[j])
                 h = (f * 2654435761) & (mb - 1)
@@ -154,25 +146,50 @@ def traverse(data, scratch, ox, oy, oz, dx, dy, dz, tnear, tfar, any_hit):
                     if any_hit:
                         return best_t, best
             cursor = vsubs[v]
-            scratch[s + 4] = cursor
-        t_enter, t_exit, t_end = scratch[s + 5], scratch[s + 6], scratch[s + 7]
         if cursor < vsubs[v + 1]:
-            scratch[s + 4] = cursor + 1
-            top = _push(data, scratch, base, top, np.int64(srefs[cursor]), max(t_enter - tol, tnear),
-                        min(min(t_exit, t_end), best_t) + tol, o, d, inv, tol, wtol)
+            c = np.int64(srefs[cursor])
+            cursor += 1
+            c0, c1, j0, j1, j2 = _enter(glo, ghi, gres, ginv, c, max(t_enter - tol, tnear),
+                                        min(min(t_exit, t_end), best_t) + tol, o, d, inv, tol, wtol)
+            if c0 <= c1:
+                s = base + STATE * level
+                scratch[s] = g
+                scratch[s + 1] = i0
+                scratch[s + 2] = i1
+                scratch[s + 3] = i2
+                scratch[s + 4] = cursor
+                scratch[s + 5] = t_enter
+                scratch[s + 6] = t_exit
+                scratch[s + 7] = t_end
+                scratch[s + 8] = axis
+                level += 1
+                g, t_enter, t_end, i0, i1, i2, cursor = c, c0, c1, j0, j1, j2, -1
             continue
         end = t_end if any_hit else min(t_end, best_t + tol)
-        if t_exit >= end:
-            top -= 1
-            continue
-        axis = int(scratch[s + 8])
-        i = int(scratch[s + 1 + axis]) + (1 if d[axis] > 0.0 else -1)
-        if i < 0 or i >= gres[g, axis]:
-            top -= 1
-            continue
-        scratch[s + 1 + axis] = i
-        scratch[s + 5] = t_exit
-        scratch[s + 4] = -1.0
+        done = t_exit >= end
+        if not done:
+            i = (i0 if axis == 0 else (i1 if axis == 1 else i2)) + step[axis]
+            if i < 0 or i >= gres[g, axis]:
+                done = True
+            else:
+                if axis == 0:
+                    i0 = i
+                elif axis == 1:
+                    i1 = i
+                else:
+                    i2 = i
+                t_enter = t_exit
+                cursor = -1
+        if done:
+            if level == 0:
+                break
+            level -= 1
+            s = base + STATE * level
+            g = int(scratch[s])
+            i0, i1, i2 = int(scratch[s + 1]), int(scratch[s + 2]), int(scratch[s + 3])
+            cursor = int(scratch[s + 4])
+            t_enter, t_exit, t_end = scratch[s + 5], scratch[s + 6], scratch[s + 7]
+            axis = int(scratch[s + 8])
     if best < 0:
         return np.inf, best
     return best_t, best
@@ -183,7 +200,7 @@ def grid_new_scratch(data):
     """The per-thread scratch (module docstring): ray counter 0, empty mailbox, the stack."""
     meta = data[11]
     mb = int(meta[2])
-    out = np.empty(1 + 2 * mb + STATE * int(meta[1]))
+    out = np.empty(1 + 2 * mb + STATE * max(int(meta[1]) - 1, 1))
     out[0] = 0.0
     for q in range(mb):
         out[1 + 2 * q] = -1.0
