@@ -6,12 +6,14 @@
   items; with ``octree=True`` every sub-grid is 2 x 2 x 2 (an object octree: an object is referenced
   in every octant its box overlaps).
 
-Coplanar piles never drop below ``maxp`` items, so two rules end the recursion: a depth limit
-(``max_depth`` grids on any chain, the top grid counting 1), and a voxel is subdivided only if the
-subdivision separates its items: its non-empty sub-voxels hold on average at most ``SEPARATES``
-(one half) of the voxel's items, or only one sub-voxel is non-empty (the items shrink into it). A
-pile of large overlapping coplanar triangles fills every sub-voxel its plane crosses, so it stays
-one voxel instead of multiplying (4 children of 8 at each octree level) down to the depth limit.
+Coplanar piles never drop below ``maxp`` items, so three rules end the recursion: a depth limit
+(``max_depth`` grids on any chain, the top grid counting 1); a voxel is subdivided only if its
+non-empty sub-voxels would hold on average at most ``SEPARATES`` (three quarters) of its items, or
+only one is non-empty (the items shrink into it); and the references of all sub-grids stay within
+``REF_BUDGET`` times those of the top grid (sub-grids are made level by level, in voxel order,
+while they fit). A pile of large overlapping coplanar triangles fills every sub-voxel its plane
+crosses (4 children of 8 at each octree level), and the voxels along the edge of a pile's box split
+again at every level; the first rule stops the one, the budget bounds the other.
 """
 
 from __future__ import annotations
@@ -21,9 +23,11 @@ from numba import njit
 
 from lightcuts.accel.grids import GridForest, assemble, cube_root_res, fill_grids
 
-#: A subdivision is made only if its non-empty sub-voxels hold on average at most this fraction
-#: of the voxel's items (or only one sub-voxel is non-empty).
-SEPARATES = 0.5
+#: A subdivision is made only if its non-empty sub-voxels hold on average at most this fraction of
+#: the voxel's items (or only one sub-voxel is non-empty).
+SEPARATES = 0.75
+#: All references (top grid and sub-grids) stay within this many times the top grid's.
+REF_BUDGET = 16
 
 
 def scene_box(blo: np.ndarray, bhi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -79,6 +83,7 @@ def build_recursive(blo: np.ndarray, bhi: np.ndarray, maxp: int = 50, max_depth:
     voxel0, off, refs = fill_grids(lo[None], hi[None], res, np.array([0, n], np.int64),
                                    np.arange(n, dtype=np.int64), blo, bhi)
     levels = [dict(lo=lo[None], hi=hi[None], res=res, voxel0=voxel0, counts=np.diff(off), refs=refs)]
+    budget = REF_BUDGET * max(len(refs), 1) - len(refs)
     split = []   # per level: batch-local voxels that became sub-grids
     depth = 1
     while True:
@@ -103,6 +108,9 @@ def build_recursive(blo: np.ndarray, bhi: np.ndarray, maxp: int = 50, max_depth:
         nonempty = np.bincount(grid_of, weights=sc > 0, minlength=len(cand))
         refs_in = np.bincount(grid_of, weights=sc, minlength=len(cand))
         accept = ((nonempty == 1) | (refs_in <= SEPARATES * nonempty * nitems)) & (nvox > 1)
+        # The budget: sub-grids in voxel order while their references fit.
+        accept &= np.cumsum(np.where(accept, refs_in, 0)) <= budget
+        budget -= int(refs_in[accept].sum())
         keep_vox = np.repeat(accept, nvox)
         keep_ref = np.repeat(keep_vox, sc)
         split.append(cand[accept])
