@@ -18,13 +18,13 @@ with phi the side's summed luminance, SA the surface area of the box of its posi
 Oriented lights emit over a hemisphere around the normal, theta_e = pi/2, and theta_o is the
 half-angle of the side's normal cone taken from the box of its unit normals
 (:func:`~lightcuts.trees.cones.cone_from_box`), the cone ``build_tree`` gives the node, so the
-heuristic judges the bound the render will use (M_Omega in its reduced form, :func:`m_omega`). Omni lights have theta_o = pi, so M_Omega = 4 pi
-for every side. Directional lights are clustered by direction (their ``position`` is the unit
+heuristic judges the bound the render will use (M_Omega in its reduced form, :func:`m_omega`).
+Omni lights have theta_o = pi, so M_Omega = 4 pi for every side. Directional lights are clustered by direction (their ``position`` is the unit
 direction, as for every builder) and have no orientation term either: M_Omega = 4 pi.
 
 The least cost wins; ties go to the lowest axis, then the lowest boundary. A candidate that leaves
-a side empty is not a split and is not considered. The longest axis has
-Kr = 1 and, within lightcuts.limits, finite costs, so a node whose lights are not all at one point
+a side empty is not a split and is not considered. The longest axis has Kr = 1 and, within
+lightcuts.limits, finite costs, so a node whose lights are not all at one point
 always has a candidate; a thin axis's Kr can overflow (a subnormal extent), and its infinite costs
 are never chosen. A node whose lights share one position is split evenly by index, so the tree is
 binary with single-light leaves and 2N-1 nodes for any input. Lights with the same position are
