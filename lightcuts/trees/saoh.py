@@ -19,8 +19,9 @@ Oriented lights emit over a hemisphere around the normal, theta_e = pi/2, and th
 half-angle of the side's normal cone taken from the box of its unit normals
 (:func:`~lightcuts.trees.cones.cone_from_box`), the cone ``build_tree`` gives the node, so the
 heuristic judges the bound the render will use (M_Omega in its reduced form, :func:`m_omega`).
-Omni lights have theta_o = pi, so M_Omega = 4 pi for every side. Directional lights are clustered by direction (their ``position`` is the unit
-direction, as for every builder) and have no orientation term either: M_Omega = 4 pi.
+Omni lights have theta_o = pi, so M_Omega = 4 pi for every side. Directional lights are
+clustered by direction (their ``position`` is the unit direction, as for every builder) and have
+no orientation term either: M_Omega = 4 pi.
 
 The least cost wins; ties go to the lowest axis, then the lowest boundary. A candidate that leaves
 a side empty is not a split and is not considered. The longest axis has Kr = 1 and, within
