@@ -23,7 +23,11 @@ from lightcuts.errors import LightcutsError
 #: The files a run may write into its output folder: a folder holding anything else is not
 #: replaced (an ``--out`` naming a folder of the user's is refused before any work).
 OUTPUT_FILES = frozenset({"image.exr", "image.png", "cutsize.png", "report.json", "reference.exr",
-                          "reference.png", "scaling.csv", "scaling.png"})
+                          "reference.png", "scaling.csv", "scaling.png", "mitsuba.exr", "mitsuba.png",
+                          "lightcuts.exr", "lightcuts.png"}) | frozenset({"reference"})
+#: Output sets nested in a run's folder (``lightcuts reference`` writes ``renders/<name>/reference/``):
+#: a new set of the enclosing folder carries them over from the set it replaces.
+NESTED_SETS = frozenset({"reference"})
 
 # Temporary files and folders of this process, removed by remove_temporaries (the signal handler
 # of lightcuts.cli). The lock makes creating a temporary, or swapping an output set into place, and
@@ -132,7 +136,8 @@ def check_creatable(folder: Path, key: str, target: Path) -> None:
 def output_set(path: str | os.PathLike) -> Iterator[Path]:
     """Yield a temporary folder beside the output folder ``path``; when the block succeeds, it
     replaces ``path`` as a whole (the old folder is renamed away, the new one renamed in, the old
-    one removed), so ``path`` holds one run's complete files or the previous run's, untouched.
+    one removed), so ``path`` holds one run's complete files or the previous run's, untouched;
+    a nested set (NESTED_SETS) of the old folder moves into the new one.
     The temporary folder is removed if the block fails or the process is interrupted."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -144,12 +149,19 @@ def output_set(path: str | os.PathLike) -> Iterator[Path]:
         yield tmp
         with _LOCK:
             old = None
+            moved = []
             if path.exists():
                 old = _temp_name(path, "old")
                 os.rename(path, old)
             try:
+                for name in sorted(NESTED_SETS) if old is not None else ():
+                    if (old / name).is_dir() and not (tmp / name).exists():
+                        os.rename(old / name, tmp / name)
+                        moved.append(name)
                 os.rename(tmp, path)
             except OSError:
+                for name in moved:
+                    os.rename(tmp / name, old / name)
                 if old is not None:
                     os.rename(old, path)
                 raise
