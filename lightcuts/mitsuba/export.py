@@ -47,7 +47,7 @@ from lightcuts.mitsuba import load_mitsuba
 #: Integrators :func:`scene_dict` knows: lightcuts' direct light only, or full paths.
 INTEGRATORS = ("direct", "path")
 #: Largest width of the resampled environment map Mitsuba receives (see envmap_for_mitsuba).
-MAX_ENVMAP_WIDTH = 4096
+MAX_ENVMAP_WIDTH = 2048
 #: Mitsuba's sampler: multi-jittered samples converge on emitter edges far faster than independent
 #: ones; it rounds a sample count it cannot factor up (``render.sample_count`` gives the one used).
 SAMPLER = "multijitter"
@@ -114,12 +114,12 @@ def envmap_for_mitsuba(pixels: np.ndarray, k: int | None = None) -> np.ndarray:
     docstring): (k H + 1, k W, 3) float32. Column ``j'`` (at ``u = (j' + 1/2) / (k W)``) takes cell
     column ``j' // k``; row ``i'`` (at ``v = i' / (k H)``) takes cell row ``i' // k``, the mean of
     rows ``i' / k - 1`` and ``i' / k`` on an inner cell edge, the last row at the nadir.
-    k : refinement, default the largest of 2..4 that keeps the width <= MAX_ENVMAP_WIDTH (at least 2).
+    k : refinement, default the largest that keeps the width <= MAX_ENVMAP_WIDTH, and at least 2.
     """
     pixels = np.asarray(pixels, np.float32)
     h, w = pixels.shape[:2]
     if k is None:
-        k = max(2, min(4, MAX_ENVMAP_WIDTH // w))
+        k = max(2, MAX_ENVMAP_WIDTH // w)
     rows = np.repeat(pixels, k, axis=0)
     out = np.concatenate([rows, pixels[-1:]], axis=0)
     if h > 1:
