@@ -199,3 +199,11 @@ def test_a_new_render_keeps_the_nested_reference(tmp_path):
     assert sorted(p.name for p in run.iterdir()) == ["image.exr", "reference"]
     assert (run / "reference" / "report.json").read_text() == "{}"
     assert not [p for p in run.parent.iterdir() if p.name.startswith(".")]
+
+
+@pytest.mark.parametrize("option, value", [("--spp", 0), ("--max-depth", 0), ("--max-depth", -2)])
+def test_bad_options_are_one_line_errors(tmp_path, capsys, option, value):
+    assert _cli(["reference", CORNELL, option, value, "--out", tmp_path / "ref"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"error: {option}: {value}")
+    assert not (tmp_path / "ref").exists()
