@@ -207,3 +207,12 @@ def test_bad_options_are_one_line_errors(tmp_path, capsys, option, value):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith(f"error: {option}: {value}")
     assert not (tmp_path / "ref").exists()
+
+
+def test_lightcuts_does_not_import_mitsuba_until_used():
+    code = ("import sys, lightcuts.cli, lightcuts.commands.reference, lightcuts.mitsuba.render\n"
+            "lightcuts.cli.build_parser()\n"
+            "print('mitsuba' in sys.modules, 'drjit' in sys.modules)\n")
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
+    assert r.returncode == 0 and r.stdout.split() == ["False", "False"], r.stderr

@@ -143,7 +143,7 @@ def _run(args, cfg, plan, out_dir: Path, warmup: list) -> dict:
     ratio = comparison["energy_ratio"]
     e, b = comparison["pixel"], comparison.get("block8")
     line = (f"{cfg.name}: {args.integrator}, Mitsuba {spp} spp {t_mi:.2f} s, lightcuts {lc['render_seconds']:.2f} s; "
-            f"energy lightcuts/Mitsuba {ratio:.4f}" if ratio is not None else "energy: Mitsuba's image is black")
+            + (f"energy lightcuts/Mitsuba {ratio:.4f}" if ratio is not None else "Mitsuba's image is black"))
     line += f"; relative error per pixel median {100 * e['median']:.2f}% p99 {100 * e['p99']:.2f}%"
     if b is not None:
         line += f", 8x8 blocks median {100 * b['median']:.2f}% p99 {100 * b['p99']:.2f}%"
