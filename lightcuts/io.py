@@ -23,11 +23,13 @@ from lightcuts.errors import LightcutsError
 #: The files a run may write into its output folder: a folder holding anything else is not
 #: replaced (an ``--out`` naming a folder of the user's is refused before any work).
 OUTPUT_FILES = frozenset({"image.exr", "image.png", "cutsize.png", "report.json", "reference.exr",
-                          "reference.png", "scaling.csv", "scaling.png", "mitsuba.exr", "mitsuba.png",
-                          "lightcuts.exr", "lightcuts.png"}) | frozenset({"reference"})
-#: Output sets nested in a run's folder (``lightcuts reference`` writes ``renders/<name>/reference/``):
-#: a new set of the enclosing folder carries them over from the set it replaces.
-NESTED_SETS = frozenset({"reference"})
+                          "reference.png", "scaling.csv", "scaling.png", "render_scaling.csv", "render_scaling.png",
+                          "compare", "accel", "reference", "mitsuba.exr", "mitsuba.png", "lightcuts.exr",
+                          "lightcuts.png"})
+#: Sub-folders of a render's folder that belong to other commands (``lightcuts compare`` writes
+#: ``renders/<name>/compare/``, ``lightcuts reference`` ``renders/<name>/reference/``): a render's
+#: output set carries them over instead of deleting them.
+SUBRUN_FOLDERS = ("compare", "accel", "reference")
 
 # Temporary files and folders of this process, removed by remove_temporaries (the signal handler
 # of lightcuts.cli). The lock makes creating a temporary, or swapping an output set into place, and
@@ -93,15 +95,18 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
                 _TEMPORARIES.discard(tmp)
 
 
-def check_output_dir(path: str | os.PathLike, key: str) -> Path:
+def check_output_dir(path: str | os.PathLike, key: str, allowed=OUTPUT_FILES) -> Path:
     """LightcutsError naming ``key`` unless ``path`` can become a run's output folder: it is a
-    folder holding only OUTPUT_FILES, or it can be created in a writable folder (checked before
-    any work, so that a render does not fail at its end)."""
+    folder holding only ``allowed`` names (shell patterns; default OUTPUT_FILES), or it can be
+    created in a writable folder (checked before any work, so that a render does not fail at its
+    end)."""
+    import fnmatch
+
     path = Path(path)
     if path.exists() or path.is_symlink():
         if not path.is_dir():
             raise LightcutsError(f"{key} {str(path)!r}: exists and is not a folder")
-        other = sorted(p.name for p in path.iterdir() if p.name not in OUTPUT_FILES)
+        other = sorted(p.name for p in path.iterdir() if not any(fnmatch.fnmatchcase(p.name, a) for a in allowed))
         if other:
             raise LightcutsError(f"{key} {str(path)!r}: the folder holds files that are not a run's outputs "
                                  f"({', '.join(other[:3])}{', ...' if len(other) > 3 else ''}); "
@@ -133,12 +138,13 @@ def check_creatable(folder: Path, key: str, target: Path) -> None:
 
 
 @contextlib.contextmanager
-def output_set(path: str | os.PathLike) -> Iterator[Path]:
+def output_set(path: str | os.PathLike, keep=()) -> Iterator[Path]:
     """Yield a temporary folder beside the output folder ``path``; when the block succeeds, it
     replaces ``path`` as a whole (the old folder is renamed away, the new one renamed in, the old
-    one removed), so ``path`` holds one run's complete files or the previous run's, untouched;
-    a nested set (NESTED_SETS) of the old folder moves into the new one.
-    The temporary folder is removed if the block fails or the process is interrupted."""
+    one removed), so ``path`` holds one run's complete files or the previous run's, untouched.
+    Entries of the old folder named in ``keep`` that the new set lacks are moved into it first
+    (e.g. another command's sub-folder). The temporary folder is removed if the block fails or the
+    process is interrupted."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     with _LOCK:
@@ -151,19 +157,19 @@ def output_set(path: str | os.PathLike) -> Iterator[Path]:
             old = None
             moved = []
             if path.exists():
+                for name in keep:
+                    if (path / name).exists() and not (tmp / name).exists():
+                        os.rename(path / name, tmp / name)
+                        moved.append(name)
                 old = _temp_name(path, "old")
                 os.rename(path, old)
             try:
-                for name in sorted(NESTED_SETS) if old is not None else ():
-                    if (old / name).is_dir() and not (tmp / name).exists():
-                        os.rename(old / name, tmp / name)
-                        moved.append(name)
                 os.rename(tmp, path)
             except OSError:
-                for name in moved:
-                    os.rename(tmp / name, old / name)
                 if old is not None:
                     os.rename(old, path)
+                for name in moved:
+                    os.rename(tmp / name, path / name)
                 raise
             _TEMPORARIES.discard(tmp)
             if old is not None:

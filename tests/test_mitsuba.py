@@ -188,13 +188,13 @@ def test_missing_mitsuba_is_one_line_and_exit_2(tmp_path):
 
 def test_a_new_render_keeps_the_nested_reference(tmp_path):
     """renders/<name>/reference/ survives the render that replaces renders/<name>/."""
-    from lightcuts.io import check_output_dir, output_set
+    from lightcuts.io import SUBRUN_FOLDERS, check_output_dir, output_set
 
     run = tmp_path / "renders" / "x"
     with output_set(run / "reference") as tmp:
         (tmp / "report.json").write_text("{}")
     check_output_dir(run, "name")  # a folder holding only a nested reference is a run's folder
-    with output_set(run) as tmp:
+    with output_set(run, keep=SUBRUN_FOLDERS) as tmp:  # as lightcuts render writes its set
         (tmp / "image.exr").write_text("new")
     assert sorted(p.name for p in run.iterdir()) == ["image.exr", "reference"]
     assert (run / "reference" / "report.json").read_text() == "{}"

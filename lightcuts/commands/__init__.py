@@ -8,4 +8,4 @@ command.
 """
 
 #: The command modules, in the order ``lightcuts --help`` lists them.
-COMMANDS = ("lights", "tree", "scaling", "render", "reference")
+COMMANDS = ("lights", "tree", "scaling", "render", "compare", "accel", "reference")
