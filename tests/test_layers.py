@@ -14,7 +14,7 @@ import lightcuts
 
 PACKAGE = Path(lightcuts.__file__).parent
 #: The stages in their order; a stage may import the ones before it.
-STAGES = ("scene", "accel", "lights", "trees", "render", "report")
+STAGES = ("scene", "accel", "lights", "trees", "render", "report", "mitsuba")
 ABOVE = ("commands", "cli", "__main__")
 
 
