@@ -1,4 +1,4 @@
-r"""findBestMatch through the kd-tree (:mod:`lightcuts.trees.kd_tree`): branch and bound.
+r"""findBestMatch through the kd-tree (:mod:`lightcuts.cluster.kd_tree`): branch and bound.
 
 A search for cluster A visits A's own leaf first (its neighbours give a tight best d at once), then,
 climbing to the root, each sibling subtree on the way, top-down with the child on A's side of the
@@ -22,13 +22,13 @@ import numpy as np
 from numba import njit
 
 from lightcuts.parallel import next_task
-from lightcuts.trees.bounds import box_union, col3, row3, union_cone
-from lightcuts.trees.kd_build import kd_build, kd_new
-from lightcuts.trees.kd_merge import kd_merge
-from lightcuts.trees.kd_tree import (I_FIRST_LEAF, I_LEAFSIZE, LEAF_SIZE, N_AXIS, N_EMIN, N_HMIN, N_IMIN, N_LMAX,
+from lightcuts.cluster.bounds import box_union, col3, row3, union_cone
+from lightcuts.cluster.kd_build import kd_build, kd_new
+from lightcuts.cluster.kd_merge import kd_merge
+from lightcuts.cluster.kd_tree import (I_FIRST_LEAF, I_LEAFSIZE, LEAF_SIZE, N_AXIS, N_EMIN, N_HMIN, N_IMIN, N_LMAX,
                                      N_SPLIT, NE_MIN, NH_MIN, NL_MAX, S_HI, S_I, S_LO, S_NHI, S_NLO, SLOT_DATA,
                                      SLOT_WIDTH, KdTree)
-from lightcuts.trees.metrics import metric_eval
+from lightcuts.cluster.dissimilarity import metric_eval
 
 # Added to the cone-cosine bound: exceeds cone_from_box's rounding except for boxes whose centre is
 # within ~1e-7 of the origin, whose cones are near the full sphere anyway.
@@ -72,8 +72,8 @@ def _pair_d(metric_id, has_cone, c, qlo, qhi, qnlo, qnhi, qi, lo, hi, nlo, nhi, 
 def kd_best_match(kd, a, metric_id, has_cone, use_cone, c):
     """findBestMatch(A): the active cluster B != A minimising d(A u B).
 
-    kd : the KdTree (:func:`~lightcuts.trees.kd_build.kd_new`); a : active cluster id;
-        metric_id, has_cone : as for :func:`~lightcuts.trees.metrics.metric_eval`; use_cone :
+    kd : the KdTree (:func:`~lightcuts.cluster.kd_build.kd_new`); a : active cluster id;
+        metric_id, has_cone : as for :func:`~lightcuts.cluster.dissimilarity.metric_eval`; use_cone :
         compute the union's cone (oriented lights and a metric with a cone term); c : cone-term scale.
     Returns ``(b, d)``; ``(-1, inf)`` if A is the only active cluster.
 
@@ -462,7 +462,7 @@ def kd_scratch(kd):
 @njit(cache=True)
 def _best_matches_after(position, normal, luminance, merges, metric_id, has_cone, use_cone, c, leafsize, grouped):
     n = position.shape[0]
-    kd, work = kd_new(position, normal, luminance, np.arange(position.shape[0]), leafsize)
+    kd, work = kd_new(position, position, normal, luminance, np.arange(position.shape[0]), leafsize)
     kd_build(kd, work)
     for m in range(merges.shape[0]):
         kd_merge(kd, work, merges[m, 0], merges[m, 1], n + m, True)
