@@ -51,6 +51,38 @@ def _union_extent(qlo, qhi, hmin, lmax, emin):
 
 
 @njit(cache=True, inline="always")
+def _node_bound(node_s, node_n, k, qlo, qhi, qnlo, qnhi, qi, metric_id, has_cone, use_cone, c, best_d):
+    """Lower bound of d(A u B) over the clusters B under kd node k, for the query A (box corners qlo,
+    qhi, normal-box corners qnlo, qnhi as 3-tuples, intensity qi): the dissimilarity of the box whose
+    extents are :func:`_union_extent` per axis, at the node's smallest intensity, and, with the cone
+    (``use_cone``) and only if that does not reach ``best_d`` already, the widest cone allowed by the
+    same bound on the boxes of normals. For the surface area this is at least the bound of Walter et
+    al. 2008, section 4 (docs/math.md, "The kd-tree's lower bound")."""
+    u0 = _union_extent(qlo[0], qhi[0], node_s[k, N_HMIN], node_s[k, N_LMAX], node_s[k, N_EMIN])
+    u1 = _union_extent(qlo[1], qhi[1], node_s[k, N_HMIN + 1], node_s[k, N_LMAX + 1], node_s[k, N_EMIN + 1])
+    u2 = _union_extent(qlo[2], qhi[2], node_s[k, N_HMIN + 2], node_s[k, N_LMAX + 2], node_s[k, N_EMIN + 2])
+    intensity = qi + np.float64(node_s[k, N_IMIN])
+    lb = metric_eval(metric_id, intensity, 0.0, 0.0, 0.0, u0, u1, u2, 1.0, has_cone, c)
+    if use_cone and lb < best_d:
+        spread = max(
+            _union_extent(qnlo[0], qnhi[0], node_n[k, NH_MIN], node_n[k, NL_MAX], node_n[k, NE_MIN]),
+            _union_extent(qnlo[1], qnhi[1], node_n[k, NH_MIN + 1], node_n[k, NL_MAX + 1], node_n[k, NE_MIN + 1]),
+            _union_extent(qnlo[2], qnhi[2], node_n[k, NH_MIN + 2], node_n[k, NL_MAX + 2], node_n[k, NE_MIN + 2]))
+        lb = metric_eval(metric_id, intensity, 0.0, 0.0, 0.0, u0, u1, u2, _cone_cos_bound(spread), has_cone, c)
+    return lb
+
+
+@njit(cache=True)
+def kd_node_bound(kd, a, k, metric_id, has_cone, use_cone, c):
+    """The lower bound :func:`kd_best_match` uses for active cluster a against kd node k (with its
+    cone part), as a float64: a diagnostic for the tests' check that it never exceeds d(A u B)."""
+    sa = kd.slot_of[a]
+    return _node_bound(kd.node_s, kd.node_n, k, row3(kd.slot_f, sa, S_LO), row3(kd.slot_f, sa, S_HI),
+                       row3(kd.slot_f, sa, S_NLO), row3(kd.slot_f, sa, S_NHI), kd.slot_f[sa, S_I], metric_id,
+                       has_cone, use_cone, c, np.inf)
+
+
+@njit(cache=True, inline="always")
 def _pair_box_d(metric_id, has_cone, c, qlo, qhi, qi, lo, hi, intensity):
     """d(A u B) without the cone term (a lower bound of it): A's box corners qlo, qhi (3-tuples) and
     intensity qi, B's lo, hi and intensity."""
@@ -102,8 +134,6 @@ def kd_best_match(kd, a, metric_id, has_cone, use_cone, c):
     qnhi = row3(slot_f, sa, S_NHI)
     qlo0, qlo1, qlo2 = qlo
     qhi0, qhi1, qhi2 = qhi
-    qnlo0, qnlo1, qnlo2 = qnlo
-    qnhi0, qnhi1, qnhi2 = qnhi
     qi = slot_f[sa, S_I]
     qc0 = 0.5 * (qlo0 + qhi0)
     qc1 = 0.5 * (qlo1 + qhi1)
@@ -124,20 +154,8 @@ def kd_best_match(kd, a, metric_id, has_cone, use_cone, c):
             k = stack_node[sp]
             lb = stack_lb[sp]
             if lb < 0.0:
-                u0 = _union_extent(qlo0, qhi0, node_s[k, N_HMIN], node_s[k, N_LMAX], node_s[k, N_EMIN])
-                u1 = _union_extent(qlo1, qhi1, node_s[k, N_HMIN + 1], node_s[k, N_LMAX + 1], node_s[k, N_EMIN + 1])
-                u2 = _union_extent(qlo2, qhi2, node_s[k, N_HMIN + 2], node_s[k, N_LMAX + 2], node_s[k, N_EMIN + 2])
-                intensity = qi + np.float64(node_s[k, N_IMIN])
-                lb = metric_eval(metric_id, intensity, 0.0, 0.0, 0.0, u0, u1, u2, 1.0, has_cone, c)
-                if use_cone and lb < best_d:
-                    spread = max(
-                        _union_extent(qnlo0, qnhi0, node_n[k, NH_MIN], node_n[k, NL_MAX], node_n[k, NE_MIN]),
-                        _union_extent(qnlo1, qnhi1, node_n[k, NH_MIN + 1], node_n[k, NL_MAX + 1],
-                                      node_n[k, NE_MIN + 1]),
-                        _union_extent(qnlo2, qnhi2, node_n[k, NH_MIN + 2], node_n[k, NL_MAX + 2],
-                                      node_n[k, NE_MIN + 2]))
-                    lb = metric_eval(metric_id, intensity, 0.0, 0.0, 0.0, u0, u1, u2, _cone_cos_bound(spread),
-                                     has_cone, c)
+                lb = _node_bound(node_s, node_n, k, qlo, qhi, qnlo, qnhi, qi, metric_id, has_cone, use_cone, c,
+                                 best_d)
             if lb >= best_d:
                 continue
             if k < first_leaf:
