@@ -23,18 +23,18 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from lightcuts.errors import LightcutsError
-from lightcuts.lights.lightset import LightSet
-from lightcuts.trees.agglomerative import agglomerative, agglomerative_stats
-from lightcuts.trees.build import build_tree
 from lightcuts.cluster.cones import cone_from_box
-from lightcuts.parallel import on_threads
 from lightcuts.cluster.kd_build import kd_build, kd_build_threaded, kd_new
 from lightcuts.cluster.kd_merge import kd_merge, kd_merge_batch, kd_merge_batch_finish, kd_subtree, kd_wants_rebuild
 from lightcuts.cluster.kd_search import best_matches_after_merges
-from lightcuts.cluster.kd_tree import (I_ACTIVE, I_BUILT, I_FIRST_LEAF, KD_SUBTREES, N_AXIS, N_EMIN, N_HMIN, N_IMIN,
-                                     N_LMAX, N_SPLIT, NE_MIN, NH_MIN, NL_MAX, S_HI, S_I, S_LO, S_NHI, S_NLO, SLOT_DATA,
-                                     KdTree)
+from lightcuts.cluster.kd_tree import (I_ACTIVE, I_BUILT, I_FIRST_LEAF, KD_SUBTREES, N_AXIS, N_EMIN, N_HMIN,
+                                       N_IMIN, N_LMAX, N_SPLIT, NE_MIN, NH_MIN, NL_MAX, S_HI, S_I, S_LO, S_NHI, S_NLO,
+                                       SLOT_DATA, KdTree)
+from lightcuts.errors import LightcutsError
+from lightcuts.lights.lightset import LightSet
+from lightcuts.parallel import on_threads
+from lightcuts.trees.agglomerative import agglomerative, agglomerative_stats
+from lightcuts.trees.build import build_tree
 from lightcuts.trees.metrics import Metric, metric_eval
 from lightcuts.trees.registry import get_metric
 from lightcuts.trees.validate import validate_tree

@@ -182,7 +182,7 @@ def test_public_functions_on_a_mesh_and_bad_input():
         check_topology(*build(lo, hi), 29)
         left, right, prim, root = build(lo[:1], hi[:1])
         assert root == 0 and left[0] == right[0] == -1 and prim[0] == 0
-    for bad_lo, bad_hi in [(lo, hi[:-1]), (lo[:0], hi[:0]), (np.where(np.arange(29)[:, None] == 3, np.nan, lo), hi), (hi + 1, hi),
-                           (lo[:, :2], hi[:, :2])]:
+    nan_lo = np.where(np.arange(29)[:, None] == 3, np.nan, lo)
+    for bad_lo, bad_hi in [(lo, hi[:-1]), (lo[:0], hi[:0]), (nan_lo, hi), (hi + 1, hi), (lo[:, :2], hi[:, :2])]:
         with pytest.raises(LightcutsError, match="bvh-agglomerative"):
             bvh_agglomerative(bad_lo, bad_hi)

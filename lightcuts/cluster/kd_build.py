@@ -14,12 +14,12 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from lightcuts.parallel import on_threads
-from lightcuts.rounding import down32, up32
 from lightcuts.cluster.bounds import points_box, set_row3
 from lightcuts.cluster.kd_tree import (I_ACTIVE, I_BUILT, I_FIRST_LEAF, I_LEAFSIZE, N_AXIS, N_EMIN, N_HMIN, N_IMIN,
-                                     N_LMAX, N_SPLIT, NE_MIN, NH_MIN, NL_MAX, NODE_WIDTH, NORMAL_WIDTH, S_HI, S_I,
-                                     S_LO, S_NHI, S_NLO, SLOT_DATA, SLOT_WIDTH, TOP_LEVELS, KdTree, KdWork)
+                                       N_LMAX, N_SPLIT, NE_MIN, NH_MIN, NL_MAX, NODE_WIDTH, NORMAL_WIDTH, S_HI, S_I,
+                                       S_LO, S_NHI, S_NLO, SLOT_DATA, SLOT_WIDTH, TOP_LEVELS, KdTree, KdWork)
+from lightcuts.parallel import on_threads
+from lightcuts.rounding import down32, up32
 
 # Traversal stack entries of a search: at most two per level, and the tree has at most ~40 levels.
 _STACK = 128

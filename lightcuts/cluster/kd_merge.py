@@ -23,7 +23,7 @@ from numba import njit
 from lightcuts.cluster.bounds import box_centre, box_union, row3, set_row3
 from lightcuts.cluster.kd_build import kd_build
 from lightcuts.cluster.kd_tree import (I_ACTIVE, I_BUILT, I_FIRST_LEAF, KD_SUBTREES, S_HI, S_I, S_LO, S_NHI, S_NLO,
-                                     SLOT_DATA, TOP_LEVELS)
+                                       SLOT_DATA, TOP_LEVELS)
 
 # The nodes of the top levels: their counts wait for kd_merge_batch_finish.
 _BATCH_TOP = (1 << TOP_LEVELS) - 1

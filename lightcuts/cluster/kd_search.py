@@ -21,14 +21,14 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from lightcuts.parallel import next_task
 from lightcuts.cluster.bounds import box_union, col3, row3, union_cone
+from lightcuts.cluster.dissimilarity import metric_eval
 from lightcuts.cluster.kd_build import kd_build, kd_new
 from lightcuts.cluster.kd_merge import kd_merge
 from lightcuts.cluster.kd_tree import (I_FIRST_LEAF, I_LEAFSIZE, LEAF_SIZE, N_AXIS, N_EMIN, N_HMIN, N_IMIN, N_LMAX,
-                                     N_SPLIT, NE_MIN, NH_MIN, NL_MAX, S_HI, S_I, S_LO, S_NHI, S_NLO, SLOT_DATA,
-                                     SLOT_WIDTH, KdTree)
-from lightcuts.cluster.dissimilarity import metric_eval
+                                       N_SPLIT, NE_MIN, NH_MIN, NL_MAX, S_HI, S_I, S_LO, S_NHI, S_NLO, SLOT_DATA,
+                                       SLOT_WIDTH, KdTree)
+from lightcuts.parallel import next_task
 
 # Added to the cone-cosine bound: exceeds cone_from_box's rounding except for boxes whose centre is
 # within ~1e-7 of the origin, whose cones are near the full sphere anyway.

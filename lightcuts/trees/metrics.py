@@ -44,8 +44,8 @@ from typing import Callable
 import numpy as np
 from numba.core.dispatcher import Dispatcher
 
-from lightcuts.cluster.dissimilarity import (SURFACE_AREA, WALTER2005, WALTER2008, metric_eval, surface_area,  # noqa: F401
-                                             walter2005, walter2008)
+from lightcuts.cluster.dissimilarity import (SURFACE_AREA, WALTER2005, WALTER2008, metric_eval,  # noqa: F401
+                                             surface_area, walter2005, walter2008)
 from lightcuts.errors import LightcutsError
 from lightcuts.trees.registry import METRICS
 
