@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Annotated, Literal
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from lightcuts.errors import LightcutsError
 from lightcuts.limits import MAX_COORD, MAX_EXPOSURE, MAX_PIXELS, MAX_SEED, MAX_CUT
@@ -90,14 +90,6 @@ class ProceduralScene(Strict):
     triangles: Annotated[int, Field(ge=10_000, le=MAX_PROCEDURAL_TRIANGLES)] | None = None
     rooms: Annotated[int, Field(ge=1, le=MAX_ROOMS)] | None = None
     seed: Annotated[int, Field(ge=0, le=MAX_SEED)] | None = None
-
-    @model_validator(mode="after")
-    def _read(self):
-        reads = PROCEDURAL_READS[self.type]
-        for key in ("triangles", "rooms", "seed"):
-            if getattr(self, key) is not None and key not in reads:
-                raise ValueError(f"{key} is not read by type {self.type} (it reads: {', '.join(reads) or 'nothing'})")
-        return self
 
 
 class SceneConfig(Strict):
@@ -305,6 +297,12 @@ def config_from_dict(data: dict, source: str = "<config>", base_dir: str | Path 
         raise LightcutsError(f"{source}: scene: needs builtin, procedural or meshes")
     if sc.builtin is not None and sc.procedural is not None:
         raise LightcutsError(f"{source}: scene: give at most one of builtin or procedural")
+    if sc.procedural is not None:
+        reads = PROCEDURAL_READS[sc.procedural.type]
+        for key in ("triangles", "rooms", "seed"):
+            if getattr(sc.procedural, key) is not None and key not in reads:
+                raise LightcutsError(f"{source}: scene.procedural.{key}: not read by type {sc.procedural.type} "
+                                     f"(it reads: {', '.join(reads) or 'nothing'})")
     if sc.procedural is not None and sc.procedural.type == "gallery" and not sc.meshes:
         raise LightcutsError(f"{source}: scene.procedural: type gallery needs scene.meshes (the exhibits)")
     env = cfg.lights.environment

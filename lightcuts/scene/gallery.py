@@ -54,9 +54,9 @@ def plinth_spots(n: int) -> np.ndarray:
     return np.array(out, np.float64).reshape(-1, 2)
 
 
-def gallery_scene(exhibits: list[Scene], offsets: list, overrides=None, name: str = "gallery") -> Scene:
-    """The room, its lights and plinths, with ``exhibits`` (placed as the module docstring says;
-    ``offsets`` (E, 3) the entries' ``translate``) after the room's triangles."""
+def gallery_parts(footprints: np.ndarray) -> PartList:
+    """The room, its lights and one plinth per exhibit; ``footprints`` (E, 3) the exhibits' bounding
+    box sizes (metres)."""
     parts = PartList()
     parts.box((-T, -T, -T), (GW + T, 0, GD + T), "floor")
     parts.box((-T, GH, -T), (GW + T, GH + T, GD + T), "ceiling")
@@ -72,20 +72,31 @@ def gallery_scene(exhibits: list[Scene], offsets: list, overrides=None, name: st
             parts.quads((cx - s / 2, GH - 0.041, cz - s / 2), (s, 0, 0), (0, 0, s), 2, 2, "ceiling_light", gap=0.01)
     parts.box((0.3, GH - 0.35, 0), (GW - 0.3, GH - 0.3, 0.12), "frame")
     parts.quads((0.35, GH - 0.351, 0.02), (GW - 0.7, 0, 0), (0, 0, 0.08), WASHER_SEGMENTS, 1, "washer", gap=0.01)
-    placed = []
-    for (x, z), mesh, offset in zip(plinth_spots(len(exhibits)), exhibits, offsets):
-        lo, hi = mesh.bounds
-        size = hi - lo
-        width = max(0.4, float(max(size[0], size[2])) + 0.15)
-        height = float(np.clip(1.5 - size[1], 0.3, 1.0))
+    for (x, z), size in zip(plinth_spots(len(footprints)), np.asarray(footprints, float).reshape(-1, 3)):
+        width, height = plinth_size(size)
         parts.box((x - width / 2, 0, z - width / 2), (x + width / 2, height, z + width / 2), "plinth")
         s = 0.3
         parts.box((x - s / 2 - 0.02, GH - 0.03, z - s / 2 - 0.02), (x + s / 2 + 0.02, GH, z + s / 2 + 0.02), "frame")
         parts.quads((x - s / 2, GH - 0.031, z - s / 2), (s, 0, 0), (0, 0, s), 2, 2, "spot", gap=0.005)
-        shift = np.array([x, height, z]) - [0.5 * (lo[0] + hi[0]), lo[1], 0.5 * (lo[2] + hi[2])] + np.asarray(offset)
+    return parts
+
+
+def plinth_size(size) -> tuple[float, float]:
+    """(width, height) metres of the plinth under an exhibit of bounding-box ``size`` (3,)."""
+    return max(0.4, float(max(size[0], size[2])) + 0.15), float(np.clip(1.5 - size[1], 0.3, 1.0))
+
+
+def gallery_scene(exhibits: list[Scene], offsets: list, overrides=None, name: str = "gallery") -> Scene:
+    """The room (``gallery_parts``) with ``exhibits`` after its triangles, each placed as the module
+    docstring says (``offsets`` (E, 3): the entries' ``translate``)."""
+    bounds = [m.bounds for m in exhibits]
+    room = gallery_parts(np.array([hi - lo for lo, hi in bounds]).reshape(-1, 3)).to_scene(PALETTE, overrides, name=name)
+    placed = []
+    for (x, z), mesh, (lo, hi), offset in zip(plinth_spots(len(exhibits)), exhibits, bounds, offsets):
+        top = np.array([x, plinth_size(hi - lo)[1], z])
+        shift = top - [0.5 * (lo[0] + hi[0]), lo[1], 0.5 * (lo[2] + hi[2])] + np.asarray(offset)
         placed.append(Scene(mesh.vertices + shift, mesh.faces, mesh.albedo, mesh.specular, mesh.exponent,
                             mesh.emission, name=mesh.name))
-    room = parts.to_scene(PALETTE, overrides, name=name)
     return concatenate_scenes([room, *placed], camera=camera(len(exhibits)), name=name)
 
 
