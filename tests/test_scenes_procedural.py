@@ -38,7 +38,7 @@ def test_same_seed_same_bytes_other_seed_differs(tmp_path):
 @pytest.mark.parametrize("target", [SMALL, 40_000, 150_000])
 def test_triangle_count_honoured(target):
     n = kitchen.kitchen_parts(target, 0).n_faces
-    assert abs(n - target) <= 0.03 * target, n
+    assert abs(n - target) <= 0.01 * target, n
 
 
 def test_resolutions_hit_budget_and_favour_large_objects():

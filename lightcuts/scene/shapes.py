@@ -5,14 +5,16 @@ A ``PartList`` collects parts (one mesh and one named material each) and turns t
 (watertight, outward normals); emitters are open quads whose normal is ``u x v``.
 
 Curved solids are first described (``Curved``: kind, dimensions, pose, material, weight) and only
-tessellated once the triangle budget is known: ``tessellate`` picks every solid's resolution
-``k = clip(s * weight)`` with one scale ``s`` found by bisection so that the total hits the budget.
+tessellated once the triangle budget is known: ``resolutions`` picks every solid's resolution
+``k = clip(s * weight)`` with one scale ``s`` found by bisection, then +-1 section on cylinders, so
+that the total hits the budget (to a few triangles, unless every solid is at its coarsest).
 Units: metres, y up.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import Mapping, NamedTuple
 
 import numpy as np
@@ -79,13 +81,29 @@ class Curved(NamedTuple):
     weight: float
 
 
-def curved_mesh(c: Curved, k: int) -> trimesh.Trimesh:
-    """The watertight trimesh of ``c`` at resolution ``k``, posed."""
-    if c.kind == "cylinder":
-        r, h = c.dims
-        m = trimesh.creation.cylinder(radius=r, height=h, sections=k)
-        m.apply_transform(pose((0, h / 2, 0)) @ Z_TO_Y)
-    elif c.kind == "annulus":
+@lru_cache(maxsize=1024)
+def _unit(kind: str, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """(vertices, faces) of the unit cylinder (radius 1, height 1, standing on y = 0, axis +y) or
+    the unit sphere at resolution ``k``: scaled per solid, so equal resolutions share one build."""
+    if kind == "cylinder":
+        m = trimesh.creation.cylinder(radius=1.0, height=1.0, sections=k)
+        m.apply_transform(pose((0, 0.5, 0)) @ Z_TO_Y)
+    else:
+        m = trimesh.creation.uv_sphere(radius=1.0, count=[k + (k % 2)] * 2)
+    v, f = np.asarray(m.vertices), np.asarray(m.faces)
+    v.flags.writeable = False
+    f.flags.writeable = False
+    return v, f
+
+
+def curved_mesh(c: Curved, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """(vertices, faces) of ``c`` at resolution ``k``, posed: a watertight solid (trimesh.creation)."""
+    if c.kind in ("cylinder", "sphere"):
+        v, f = _unit(c.kind, k)
+        scale = (c.dims[0], c.dims[1], c.dims[0]) if c.kind == "cylinder" else (c.dims[0],) * 3
+        v = (v * scale) @ c.matrix[:3, :3].T + c.matrix[:3, 3]
+        return v, f
+    if c.kind == "annulus":
         r0, r1, h = c.dims
         m = trimesh.creation.annulus(r_min=r0, r_max=r1, height=h, sections=k)
         m.apply_transform(pose((0, h / 2, 0)) @ Z_TO_Y)
@@ -93,12 +111,10 @@ def curved_mesh(c: Curved, k: int) -> trimesh.Trimesh:
         big, small = c.dims
         m = trimesh.creation.torus(big, small, major_sections=k, minor_sections=max(3, k // 2))
         m.apply_transform(Z_TO_Y)
-    elif c.kind == "sphere":
-        m = trimesh.creation.uv_sphere(radius=c.dims[0], count=[k + (k % 2)] * 2)
     else:
         raise ValueError(c.kind)
     m.apply_transform(c.matrix)
-    return m
+    return np.asarray(m.vertices), np.asarray(m.faces)
 
 
 def resolutions(items: list[Curved], budget: int) -> np.ndarray:
@@ -126,7 +142,15 @@ def resolutions(items: list[Curved], budget: int) -> np.ndarray:
         else:
             hi = mid
     a, b = ks(np.exp(lo)), ks(np.exp(hi))
-    return a if abs(total(a) - budget) <= abs(total(b) - budget) else b
+    k = a if abs(total(a) - budget) <= abs(total(b) - budget) else b
+    # the rest of the gap in steps of 4 triangles: +-1 section on the finest cylinders first
+    cyl = groups["cylinder"][np.argsort(-w[groups["cylinder"]], kind="stable")]
+    steps = int((budget - total(k)) / 4)
+    if len(cyl) and steps:
+        q, r = divmod(abs(steps), len(cyl))
+        k[cyl] += int(np.sign(steps)) * (q + (np.arange(len(cyl)) < r))
+        k[cyl] = np.clip(k[cyl], lo_k[cyl], hi_k[cyl])
+    return k
 
 
 @dataclass
