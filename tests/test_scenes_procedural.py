@@ -171,3 +171,30 @@ def test_shipped_config_builds(name):
     if name != "gallery":
         assert abs(scene.n_faces - cfg.scene.procedural.triangles * (cfg.scene.procedural.rooms or 1)) \
             <= 0.03 * scene.n_faces
+
+
+def test_default_camera_and_image_size(tmp_path):
+    (tmp_path / "k.yaml").write_text("scene: {procedural: {type: kitchen, triangles: 12000}}\n")
+    cfg = load_config(tmp_path / "k.yaml")
+    scene = scene_from_config(cfg)
+    assert image_size(cfg) == (scene.camera.width, scene.camera.height) == kitchen.RESOLUTION
+    assert np.all(scene.camera.position > 0) and np.all(scene.camera.position < [kitchen.W, kitchen.H, kitchen.D])
+
+
+@pytest.mark.parametrize("n_rooms, axis", [(4, 0), (2, 2)], ids=["side", "front"])
+def test_doorway_is_open(n_rooms, axis):
+    """The segment from room 0 through its side doorway (4 rooms: 2 side by side, 2 facing them) or
+    its front doorway (2 rooms facing each other) meets no part's bounding box; beside it, a wall."""
+    parts = rooms.building_parts(n_rooms, SMALL, 0)
+    t = np.linspace(-0.5, 2 * kitchen.T + 0.5, 200)
+    if axis == 0:
+        points = np.stack([kitchen.W + t, np.full_like(t, 1.0), np.full_like(t, 0.5 * sum(kitchen.SIDE_DOOR))], 1)
+    else:
+        points = np.stack([np.full_like(t, 0.5 * kitchen.W), np.full_like(t, 1.0), kitchen.D + t], 1)
+
+    def blocked(p):
+        return [bool(np.any(np.all((p > v.min(axis=0)) & (p < v.max(axis=0)), axis=1))) for v in parts.vertices]
+
+    assert not any(blocked(points))
+    points[:, 2 - axis] += 0.8  # beside the doorway (0.9 m wide)
+    assert any(blocked(points))
