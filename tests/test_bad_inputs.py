@@ -337,7 +337,8 @@ _KEYS = ["name", "seed", "scene", "builtin", "meshes", "file", "materials", "flo
          "crop", "exposure", "clamp", "enabled", "max_cut", "ray_caster", "scale", "rotate", "translate",
          "type", "triangles", "rooms"]
 _SCALARS = (st.none() | st.booleans() | st.integers(-2**70, 2**70) | st.floats(allow_nan=True)
-            | st.text(max_size=8) | st.sampled_from(["cornell", "agglomerative", "walter2008", "sky", "x.obj", "kitchen", "gallery"]))
+            | st.text(max_size=8)
+            | st.sampled_from(["cornell", "agglomerative", "walter2008", "sky", "x.obj", "kitchen", "gallery"]))
 _TREES = st.recursive(_SCALARS, lambda kids: st.lists(kids, max_size=4)
                       | st.dictionaries(st.sampled_from(_KEYS) | st.text(max_size=4) | st.integers(), kids,
                                         max_size=5), max_leaves=25)

@@ -90,7 +90,8 @@ def gallery_scene(exhibits: list[Scene], offsets: list, overrides=None, name: st
     """The room (``gallery_parts``) with ``exhibits`` after its triangles, each placed as the module
     docstring says (``offsets`` (E, 3): the entries' ``translate``)."""
     bounds = [m.bounds for m in exhibits]
-    room = gallery_parts(np.array([hi - lo for lo, hi in bounds]).reshape(-1, 3)).to_scene(PALETTE, overrides, name=name)
+    sizes = np.array([hi - lo for lo, hi in bounds]).reshape(-1, 3)
+    room = gallery_parts(sizes).to_scene(PALETTE, overrides, name=name)
     placed = []
     for (x, z), mesh, (lo, hi), offset in zip(plinth_spots(len(exhibits)), exhibits, bounds, offsets):
         top = np.array([x, plinth_size(hi - lo)[1], z])

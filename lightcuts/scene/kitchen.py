@@ -127,7 +127,8 @@ def shell(parts: PartList, doors=(), window: bool = True) -> None:
     for i in range(4):
         for j in range(3):
             cx, cz, s = W * (i + 0.5) / 4, D * (j + 0.5) / 3, 0.6
-            parts.box((cx - s / 2 - 0.02, H - 0.03, cz - s / 2 - 0.02), (cx + s / 2 + 0.02, H, cz + s / 2 + 0.02), "frame")
+            rim = s / 2 + 0.02
+            parts.box((cx - rim, H - 0.03, cz - rim), (cx + rim, H, cz + rim), "frame")
             parts.quads((cx - s / 2, H - 0.031, cz - s / 2), (s, 0, 0), (0, 0, s), PANEL_TILES, PANEL_TILES,
                         "ceiling_light", gap=0.008)
 

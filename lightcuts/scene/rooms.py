@@ -55,9 +55,12 @@ def building_parts(rooms: int, triangles: int, seed: int) -> PartList:
 
 
 def camera(rooms: int) -> Camera:
-    """In the first room, looking through its doorway into the next one (the kitchen's camera for
-    a single room)."""
-    if rooms == 1:
-        return kitchen_camera()
-    z = 0.5 * sum(SIDE_DOOR)
-    return Camera((1.0, 1.6, D - 0.3), (W + 1.8, 1.0, z - 0.6), (0, 1, 0), 70.0, *RESOLUTION)
+    """In the first room, looking through its side doorway into the next room of its row (or, with
+    2 rooms, through its front doorway into the room facing it); the kitchen's camera for 1 room."""
+    doors = layout(rooms)[0]["doors"]
+    if "right" in doors:
+        z = 0.5 * sum(SIDE_DOOR)
+        return Camera((1.0, 1.6, D - 0.3), (W + 1.8, 1.0, z - 0.6), (0, 1, 0), 70.0, *RESOLUTION)
+    if "front" in doors:
+        return Camera((0.9, 1.6, 1.0), (0.5 * W + 0.6, 1.0, D + 1.5), (0, 1, 0), 70.0, *RESOLUTION)
+    return kitchen_camera()
