@@ -6,10 +6,11 @@ boxes outside it. Along the back wall (z = 0): base cabinets with a glossy workt
 whose undersides carry an LED strip of ``LED_SEGMENTS`` quads. Left wall (x = 0): a window, an
 emissive quad of sky radiance split into panes (only where the wall is exterior). Right wall (x = W):
 shelves with books and small items. Centre: a table with plates and four chairs. Ceiling: a 4 x 3 grid
-of LED panels, each 3 x 3 emitting tiles. Small items (cups, jars, bottles, fruit, utensils, bolts,
-beads) sit in 12 cm cells on the worktop, table, shelves and wall-cabinet tops; their number grows
-with the triangle budget, and the curved solids' tessellation takes up the rest of it
-(``shapes.resolutions``), so the scene hits the requested triangle count within a few percent.
+of LED panels, each 3 x 3 emitting tiles. Small items (cups, bowls, stacks of saucers, jars,
+bottles, fruit, utensils, bolts, beads) sit in 12 cm cells on the worktop, table, shelves and
+wall-cabinet tops; their number grows with the triangle budget, and the curved solids' tessellation
+takes up the rest of it (``shapes.resolutions``), so the scene hits the requested triangle count to
+a few triangles (the 1995 HUG paper's kitchen likewise gained bowls and stacks of plates).
 
 Emitters are one-sided quads 1 mm off the surface they are mounted on, facing into the room. All
 other parts are closed solids (watertight). Doorways (0.9 x 2.1 m) open the side walls near the
@@ -74,7 +75,8 @@ BOOKS = ("book_red", "book_blue", "book_green", "book_cream", "book_black")
 CERAMICS = ("ceramic", "ceramic_blue", "ceramic_red")
 FRUITS = ("fruit_red", "fruit_orange", "fruit_green")
 #: Small-item kinds and their probabilities.
-CLUSTERS = {"cup": 0.18, "jar": 0.14, "bottle": 0.08, "fruit": 0.14, "utensils": 0.14, "bolts": 0.16, "beads": 0.16}
+CLUSTERS = {"cup": 0.14, "bowl": 0.08, "saucers": 0.08, "jar": 0.12, "bottle": 0.08, "fruit": 0.12, "utensils": 0.12,
+            "bolts": 0.13, "beads": 0.13}
 
 TABLE_CENTRE = (0.5 * W, 2.0)
 TABLE_SIZE = (1.6, 0.9)
@@ -233,6 +235,15 @@ def _cluster(kind: str, p, rng: np.random.Generator, parts: PartList, curved: li
         curved.append(Curved("cylinder", (rad - 0.0041, 0.006), pose((x, y, z)), mat, _w(2 * rad)))
         hx, hz = x + (rad + 0.012) * np.cos(turn), z - (rad + 0.012) * np.sin(turn)
         curved.append(Curved("torus", (0.02, 0.005), pose((hx, y + 0.55 * h, hz), turn, np.pi / 2), mat, _w(0.05)))
+    elif kind == "bowl":
+        rad, h = r(0.045, 0.058), r(0.04, 0.06)
+        mat = CERAMICS[rng.integers(3)]
+        curved.append(Curved("annulus", (rad - 0.005, rad, h), pose((x, y, z)), mat, _w(2 * rad)))
+        curved.append(Curved("cylinder", (rad - 0.0051, 0.008), pose((x, y, z)), mat, _w(2 * rad)))
+    elif kind == "saucers":
+        rad, mat = r(0.045, 0.058), CERAMICS[rng.integers(3)]
+        for i in range(rng.integers(2, 9)):
+            curved.append(Curved("cylinder", (rad, 0.009), pose((x, y + 0.0092 * i, z)), mat, _w(2 * rad)))
     elif kind == "jar":
         rad, h = r(0.025, 0.045), r(0.07, 0.16)
         curved.append(Curved("cylinder", (rad, h), pose((x, y, z)), "glass", _w(h)))
