@@ -160,7 +160,7 @@ def test_material_overrides_by_surface_name():
         procedural_scene(ProceduralScene(type="kitchen", triangles=SMALL), {"sofa": {}})
 
 
-@pytest.mark.parametrize("name", ["kitchen", "rooms", "gallery"])
+@pytest.mark.parametrize("name", ["kitchen", "rooms", "mesh-gallery"])
 def test_shipped_config_builds(name):
     cfg = load_config(ROOT / "configs" / f"{name}.yaml")
     scene = scene_from_config(cfg)
@@ -168,7 +168,7 @@ def test_shipped_config_builds(name):
     lo, hi = scene.bounds
     assert np.all(scene.camera.position > lo) and np.all(scene.camera.position < hi)
     assert len(scene.emitters) >= 100
-    if name != "gallery":
+    if name != "mesh-gallery":
         assert abs(scene.n_faces - cfg.scene.procedural.triangles * (cfg.scene.procedural.rooms or 1)) \
             <= 0.03 * scene.n_faces
 
