@@ -146,3 +146,14 @@ def test_mitsuba_row_at_equal_time(tmp_path):
     assert "Lightcuts and path tracing at equal time" in (out / "table.md").read_text()
     for name in ("reference", "equal_time"):
         assert (out / f"mitsuba-{name}.exr").is_file() and (out / f"mitsuba-{name}.png").is_file()
+
+
+def test_a_render_keeps_the_compare_folder(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    cfg = str(ROOT / "configs/cornell.yaml")
+    assert main(["compare", cfg, "--builders", "divisive-3d", "--pixels", "0", "--no-progress", *SMALL]) == 0
+    table = (tmp_path / "renders/cornell/compare/table.md").read_text()
+    assert main(["render", cfg, "--no-progress", *SMALL]) == 0
+    assert (tmp_path / "renders/cornell/image.exr").is_file()
+    assert (tmp_path / "renders/cornell/compare/table.md").read_text() == table
+    assert (tmp_path / "renders/cornell/compare/rows/divisive-3d.npz").is_file()
