@@ -337,12 +337,21 @@ def test_stats(structures, scene):
         s = make_caster((v, f), name).stats()
         for k in ("build_s", "memory_bytes", "voxels", "items", "nu_1", "depth", "refs_per_item"):
             assert k in s
-        assert s["items"] == len(f) and s["nu_1"] == s["voxels"] / s["items"] and s["memory_bytes"] > 0
+        assert s["items"] == len(f) and s["nu_1"] == s["voxels"] / s["items"]
+        assert s["memory_bytes"] == s["structure_bytes"] + 72 * len(f) and s["structure_bytes"] > 0
         assert s["refs_per_item"] >= 1.0
     h = make_caster((v, f), "hug").stats()
     assert sum(h["grids_per_level"]) == h["grids"] and h["levels"] == 3 and h["clustering_ratio"] > 0
     # Cube-root criterion: about n voxels for n triangles.
     assert make_caster((v, f), "grid").stats()["voxels"] == pytest.approx(len(f), rel=0.5)
+
+
+def test_builds_are_deterministic(scene):
+    v, f = scene
+    for kind, params in (("grid", {}), *DEEP):
+        a, b = GridCaster(v, f, kind=kind, **params).forest, GridCaster(v, f, kind=kind, **params).forest
+        for k in ("lo", "hi", "res", "voxel0", "vox_items", "item_refs", "vox_subs", "sub_refs"):
+            assert getattr(a, k).tobytes() == getattr(b, k).tobytes(), (kind, k)
 
 
 def test_empty_mesh():

@@ -98,13 +98,16 @@ class GridCaster(RayCaster):
         self.forest.save(path)
 
     def stats(self) -> dict:
-        """The study's figures: build_s, memory_bytes (the structure's arrays), voxels, items
+        """The study's figures: build_s, memory_bytes (the structure's arrays and the (F, 9) float64
+        triangle corners the traversal reads, as the BVH casters count), structure_bytes (the grid
+        arrays alone), voxels, items
         (triangles), nu_1 = voxels / items, depth (grids on the longest chain), refs_per_item (triangle
         references / items), grids; hug adds clustering_ratio, grids_per_level (filter level 0 = the
         smallest objects), clusters_per_level, levels, filter, alpha; the comparators maxp, max_depth."""
         f = self.forest
         items = max(self.n_faces, 1)
-        out = {"caster": self.name, "build_s": float(self.info.get("build_s", 0.0)), "memory_bytes": f.nbytes,
+        out = {"caster": self.name, "build_s": float(self.info.get("build_s", 0.0)), "memory_bytes": f.nbytes + self._data[-2].nbytes,
+               "structure_bytes": f.nbytes,
                "voxels": f.n_voxels, "items": self.n_faces, "nu_1": f.n_voxels / items, "depth": self._depth,
                "refs_per_item": len(f.item_refs) / items, "grids": f.n_grids}
         out.update({k: v for k, v in self.info.items() if k != "build_s"})
