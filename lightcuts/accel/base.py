@@ -1,6 +1,36 @@
-"""The ray-caster interface and the input checks every caster shares."""
+r"""The ray-caster interface and the input checks every caster shares.
+
+A caster answers batches of rays from Python (:meth:`RayCaster.intersect` / :meth:`RayCaster.occluded`).
+A KERNEL-CALLABLE caster (registry trait ``kernel_callable=True``) also lets numba kernels (the
+renderer, the reference, the particle tracer) cast single rays and packets inside their own loops,
+through :attr:`RayCaster.kernel_caster`, a :class:`KernelCaster`:
+
+``intersect(data, scratch, ox, oy, oz, dx, dy, dz, tnear, tfar) -> (t float64, prim int64)``
+    closest hit with tnear <= t <= tfar (t in units of |d|; inf and -1 on a miss, and for an empty
+    segment ``not tfar >= tnear``); the arguments after ``scratch`` are float64 scalars.
+``occluded(data, scratch, ox, oy, oz, dx, dy, dz, tnear, tfar) -> bool``
+    any hit with tnear <= t <= tfar.
+``packet_occluded(data, scratch, pk, width, n) -> None``
+    cast lanes 0..n-1 of the packet ``pk`` (lightcuts.accel.packets: the kernel fills lanes with
+    ``packet_set_ray``; the caster sets an occluded lane's tfar to -inf). A caster without packets
+    loops over the lanes (``packet_get_ray``, ``mark_lane_occluded``).
+``new_scratch(data) -> array``
+    the per-thread scratch the three calls above receive (allocated once per chunk of rays, never
+    per ray): Embree's RTCRayHit buffer, a BVH's traversal stack.
+``width``: int, lanes per packet (1..8; kernels fill up to ``width`` lanes before a packet call).
+``data``: a tuple of arrays / numbers / ctypes functions, the caster's state (Embree: its ctypes
+    functions and scene handle; a BVH: its node and triangle arrays).
+
+The four functions are ``@njit(cache=True)`` dispatchers defined at module level, and kernels
+receive them (and ``data``) as ARGUMENTS: numba compiles one specialisation of a kernel per caster
+type and caches it across processes. A dispatcher captured in a closure, or a ctypes function as a
+global, is not cached across processes. An outside caster registered with ``kernel_callable=True``
+supplies exactly this tuple and renders like a built-in one.
+"""
 
 from __future__ import annotations
+
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -8,6 +38,18 @@ from lightcuts.errors import LightcutsError
 
 # Embree works in float32: a coordinate beyond this would become inf inside the BVH traversal.
 _F32_MAX = float(np.finfo(np.float32).max)
+
+
+class KernelCaster(NamedTuple):
+    """What a kernel-callable caster hands to numba kernels (module docstring: the signatures).
+    Kernels take these six as consecutive arguments in this order (``*caster.kernel_caster``)."""
+
+    intersect: Any
+    occluded: Any
+    packet_occluded: Any
+    new_scratch: Any
+    width: int
+    data: tuple
 
 
 class RayCaster:
@@ -19,8 +61,8 @@ class RayCaster:
     Implementations pass their inputs through :func:`check_rays` first.
     """
 
-    #: (intersect1, occluded1, scene_handle) for per-ray calls from numba kernels, or None.
-    kernel_handles = None
+    #: The :class:`KernelCaster` of a kernel-callable caster (valid while the caster is open), else None.
+    kernel_caster = None
 
     def intersect(self, org, dirs, tnear, tfar) -> tuple[np.ndarray, np.ndarray]:
         """Closest hit with t in [tnear, tfar]: (t (n,) float64, inf on a miss; prim (n,) int32, -1 on a miss)."""
