@@ -23,7 +23,10 @@ from lightcuts.errors import LightcutsError
 #: The files a run may write into its output folder: a folder holding anything else is not
 #: replaced (an ``--out`` naming a folder of the user's is refused before any work).
 OUTPUT_FILES = frozenset({"image.exr", "image.png", "cutsize.png", "report.json", "reference.exr",
-                          "reference.png", "scaling.csv", "scaling.png"})
+                          "reference.png", "scaling.csv", "scaling.png", "compare"})
+#: Sub-folders of a render's folder that belong to other commands (``lightcuts compare`` writes
+#: ``renders/<name>/compare/``): a render's output set carries them over instead of deleting them.
+SUBRUN_FOLDERS = ("compare",)
 
 # Temporary files and folders of this process, removed by remove_temporaries (the signal handler
 # of lightcuts.cli). The lock makes creating a temporary, or swapping an output set into place, and
@@ -89,15 +92,18 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
                 _TEMPORARIES.discard(tmp)
 
 
-def check_output_dir(path: str | os.PathLike, key: str) -> Path:
+def check_output_dir(path: str | os.PathLike, key: str, allowed=OUTPUT_FILES) -> Path:
     """LightcutsError naming ``key`` unless ``path`` can become a run's output folder: it is a
-    folder holding only OUTPUT_FILES, or it can be created in a writable folder (checked before
-    any work, so that a render does not fail at its end)."""
+    folder holding only ``allowed`` names (shell patterns; default OUTPUT_FILES), or it can be
+    created in a writable folder (checked before any work, so that a render does not fail at its
+    end)."""
+    import fnmatch
+
     path = Path(path)
     if path.exists() or path.is_symlink():
         if not path.is_dir():
             raise LightcutsError(f"{key} {str(path)!r}: exists and is not a folder")
-        other = sorted(p.name for p in path.iterdir() if p.name not in OUTPUT_FILES)
+        other = sorted(p.name for p in path.iterdir() if not any(fnmatch.fnmatchcase(p.name, a) for a in allowed))
         if other:
             raise LightcutsError(f"{key} {str(path)!r}: the folder holds files that are not a run's outputs "
                                  f"({', '.join(other[:3])}{', ...' if len(other) > 3 else ''}); "
@@ -129,11 +135,13 @@ def check_creatable(folder: Path, key: str, target: Path) -> None:
 
 
 @contextlib.contextmanager
-def output_set(path: str | os.PathLike) -> Iterator[Path]:
+def output_set(path: str | os.PathLike, keep=()) -> Iterator[Path]:
     """Yield a temporary folder beside the output folder ``path``; when the block succeeds, it
     replaces ``path`` as a whole (the old folder is renamed away, the new one renamed in, the old
     one removed), so ``path`` holds one run's complete files or the previous run's, untouched.
-    The temporary folder is removed if the block fails or the process is interrupted."""
+    Entries of the old folder named in ``keep`` that the new set lacks are moved into it first
+    (e.g. another command's sub-folder). The temporary folder is removed if the block fails or the
+    process is interrupted."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     with _LOCK:
@@ -144,7 +152,12 @@ def output_set(path: str | os.PathLike) -> Iterator[Path]:
         yield tmp
         with _LOCK:
             old = None
+            moved = []
             if path.exists():
+                for name in keep:
+                    if (path / name).exists() and not (tmp / name).exists():
+                        os.rename(path / name, tmp / name)
+                        moved.append(name)
                 old = _temp_name(path, "old")
                 os.rename(path, old)
             try:
@@ -152,6 +165,8 @@ def output_set(path: str | os.PathLike) -> Iterator[Path]:
             except OSError:
                 if old is not None:
                     os.rename(old, path)
+                for name in moved:
+                    os.rename(tmp / name, path / name)
                 raise
             _TEMPORARIES.discard(tmp)
             if old is not None:

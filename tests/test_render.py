@@ -101,6 +101,12 @@ def test_same_inputs_give_identical_bytes_on_any_thread_count(cornell, thread_co
     crop = render_image(scene, caster, lights, trees, crop=(5, 30, 21, 41), **kwargs)
     assert crop.image.shape == (11, 16, 3)
     assert crop.image.tobytes() == np.ascontiguousarray(one.image[30:41, 5:21]).tobytes()
+    # A list of pixels renders exactly those pixels of the full image, in the list's order.
+    pix = np.array([[47, 0], [3, 9], [20, 33], [3, 9], [0, 47]])
+    some = render_image(scene, caster, lights, trees, pixels=pix, **kwargs)
+    assert some.image.shape == (5, 1, 3) and some.crop is None
+    assert some.image[:, 0].tobytes() == np.ascontiguousarray(one.image[pix[:, 1], pix[:, 0]]).tobytes()
+    assert some.cut_size[:, 0].tobytes() == np.ascontiguousarray(one.cut_size[pix[:, 1], pix[:, 0]]).tobytes()
     # Another seed moves the eye rays.
     other = render_image(scene, caster, lights, trees, camera=camera, spp=2, seed=8)
     assert other.image.tobytes() != one.image.tobytes()
@@ -296,6 +302,9 @@ def test_bad_inputs_raise_one_line_errors(cornell):
         render_image(scene, caster, lights, trees, camera=camera, spp=0)
     with pytest.raises(LightcutsError, match="render.crop"):
         render_image(scene, caster, lights, trees, camera=camera, crop=(0, 0, 49, 10))
+    for bad in ([[48, 0]], [[0, -1]], np.zeros((0, 2))):
+        with pytest.raises(LightcutsError, match="pixels"):
+            render_image(scene, caster, lights, trees, camera=camera, pixels=bad)
     with pytest.raises(LightcutsError, match="render.eps"):
         render_image(scene, caster, lights, trees, camera=camera, eps=float("nan"))
     with pytest.raises(LightcutsError, match="render.max_cut"):

@@ -119,6 +119,12 @@ def _embree_lib() -> _EmbreeLib:
     return _EmbreeLib(path, version, lib, intersect1, occluded1, occluded_n, width)
 
 
+def embree_version() -> str:
+    """The loaded libembree4's version, e.g. ``"4.4.0"``."""
+    v = _embree_lib().version
+    return f"{v // 10000}.{v // 100 % 100}.{v % 100}"
+
+
 @RAY_CASTERS.register("embree", kernel_callable=True)
 class EmbreeCaster(RayCaster):
     """Embree 4 through ctypes, rays cast by numba kernels on all cores.

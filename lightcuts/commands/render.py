@@ -53,7 +53,7 @@ def _run(args, cfg, plan, out_dir: Path, warmup: list) -> dict:
     from lightcuts import __version__
     from lightcuts.commands.plan import tree_meta
     from lightcuts.commands.warmup import finish_warmup, start_render_warmup
-    from lightcuts.io import output_set, save_json
+    from lightcuts.io import SUBRUN_FOLDERS, output_set, save_json
     from lightcuts.render.integrator import render_image, render_reference
     from lightcuts.report.images import relative_error, write_exr, write_heatmap, write_png
 
@@ -123,7 +123,7 @@ def _run(args, cfg, plan, out_dir: Path, warmup: list) -> dict:
         "machine": platform.machine(),
     }
 
-    with output_set(out_dir) as tmp_dir:
+    with output_set(out_dir, keep=SUBRUN_FOLDERS) as tmp_dir:
         write_exr(tmp_dir / "image.exr", result.image)
         write_png(tmp_dir / "image.png", result.image, cfg.render.exposure)
         write_heatmap(tmp_dir / "cutsize.png", result.cut_size,

@@ -87,7 +87,7 @@ class RenderResult:
     eps: float
     max_cut: int
     reference: bool
-    crop: tuple[int, int, int, int]
+    crop: tuple[int, int, int, int] | None
     n_lights: dict = field(default_factory=dict)
 
 
@@ -149,10 +149,11 @@ def _render_pixel(intersect1, occluded1, occluded_n, width, scene, cam, seed, sp
 def _render_band(intersect1, occluded1, occluded_n, width, scene, cam, seed, spp, sx, sy, x0, x1, y0, y1,
                  face_normal, albedo, specular, exponent, emission, node_b, node_bi, roots, light_f, light_i,
                  env_pixels, env_rotation, env_scale, eps, max_cut, clamp_d2, ray_offset, visibility, reference,
-                 out_rgb, out_cut, out_rays, out_lost, tasks):
+                 pixels, out_rgb, out_cut, out_rays, out_lost, tasks):
     """Render pixels [x0, x1) x [y0, y1) (full-image coordinates) into the band's output rows: one
     thread's share, chunks of CHUNK pixels taken from the counter ``tasks`` (int64 (1,), zero at the
-    start; lightcuts.parallel.next_task) until none is left.
+    start; lightcuts.parallel.next_task) until none is left. A non-empty ``pixels`` ((K, 2) int64,
+    x and y) renders those pixels instead, pixel i into row i of the window [0, 1) x [0, K).
 
     out_rgb (rows, cols, 3), out_cut (rows, cols), out_rays (rows, cols) int64, out_lost (rows, cols):
     per pixel, averaged over its eye rays except out_rays (summed).
@@ -174,8 +175,11 @@ def _render_band(intersect1, occluded1, occluded_n, width, scene, cam, seed, spp
         for i in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
             row = i // cols
             col = i - row * cols
+            px, py = x0 + col, y0 + row
+            if pixels.shape[0] > 0:
+                px, py = pixels[i, 0], pixels[i, 1]
             a0, a1, a2, cut, rays, lost = _render_pixel(
-                intersect1, occluded1, occluded_n, width, scene, cam, seed, spp, sx, sy, x0 + col, y0 + row,
+                intersect1, occluded1, occluded_n, width, scene, cam, seed, spp, sx, sy, px, py,
                 face_normal, albedo, specular, exponent, emission, node_b, node_bi, roots, light_f, light_i,
                 env_pixels, env_rotation, env_scale, eps, max_cut, clamp_d2, ray_offset, visibility, reference,
                 buf, pk, heap, slot_node, slot_mgv, slot_ratio, lane_slot)
@@ -201,11 +205,20 @@ def shadow_ray_offset(scene) -> float:
 
 
 def _render(scene, caster, lights, trees, camera, spp, eps, max_cut, clamp, clamp_min_distance, envmap, seed,
-            crop, progress, reference, visibility) -> RenderResult:
+            crop, progress, reference, visibility, pixels=None) -> RenderResult:
     t_start = time.perf_counter()
     camera = camera if camera is not None else scene.camera
     cam = camera_params(camera)
     x0, y0, x1, y1 = check_crop(crop, camera)
+    if pixels is None:
+        pix = np.zeros((0, 2), np.int64)
+    else:
+        pix = np.ascontiguousarray(pixels, np.int64).reshape(-1, 2)
+        if crop is not None or len(pix) == 0 or (pix < 0).any() or (pix[:, 0] >= camera.width).any() \
+                or (pix[:, 1] >= camera.height).any():
+            raise LightcutsError(f"pixels: {len(pix)} pixel(s), expected at least one, each inside the "
+                                 f"{camera.width} x {camera.height} image, and no crop")
+        x0, y0, x1, y1 = 0, 0, 1, len(pix)
     if int(spp) != spp or spp < 1:
         raise LightcutsError(f"render.spp: {spp} must be a positive integer")
     if not (eps >= 0 and math.isfinite(eps)):
@@ -252,7 +265,8 @@ def _render(scene, caster, lights, trees, camera, spp, eps, max_cut, clamp, clam
                    scene_handle, cam, seed, spp, sx, sy, x0, x1, y0 + b0, y0 + b1, face_normal, albedo, specular,
                    exponent, emission, f.node_b, f.node_bi, f.roots, f.light_f, f.light_i, env_pixels,
                    env_rotation, env_scale, float(eps), max_cut, float(clamp_d2), float(ray_offset),
-                   bool(visibility), bool(reference), rgb[b0:b1], cut[b0:b1], rays[b0:b1], lost[b0:b1])
+                   bool(visibility), bool(reference), pix[b0:b1] if len(pix) else pix, rgb[b0:b1], cut[b0:b1],
+                   rays[b0:b1], lost[b0:b1])
         if progress is not None:
             progress(b1 - b0)
 
@@ -263,14 +277,14 @@ def _render(scene, caster, lights, trees, camera, spp, eps, max_cut, clamp, clam
         image=rgb.astype(np.float32), cut_size=cut.astype(np.float32), shadow_rays_image=rays,
         shadow_rays=int(rays.sum()), eye_rays=rows * cols * spp, clamped_energy=clamped,
         clamped_fraction=clamped / total if total > 0 else 0.0, seconds=time.perf_counter() - t_start,
-        spp=spp, eps=float(eps), max_cut=max_cut, reference=reference, crop=(x0, y0, x1, y1),
-        n_lights=forest.n_lights)
+        spp=spp, eps=float(eps), max_cut=max_cut, reference=reference,
+        crop=(x0, y0, x1, y1) if pixels is None else None, n_lights=forest.n_lights)
 
 
 def render_image(scene, caster, lights: dict, trees: dict, camera=None, spp: int = 1, eps: float = 0.02,
                  max_cut: int = 1000, clamp: bool = True, clamp_min_distance: float = 0.05, envmap=None,
                  seed: int = 0, crop=None, progress: Callable[[int], object] | None = None,
-                 reference: bool = False, visibility: bool = True) -> RenderResult:
+                 reference: bool = False, visibility: bool = True, pixels=None) -> RenderResult:
     """Render with lightcuts (or, with ``reference=True``, every light at every pixel).
 
     scene : lightcuts.scene.Scene; caster : a ray caster with ``kernel_handles`` (``embree``)
@@ -286,20 +300,24 @@ def render_image(scene, caster, lights: dict, trees: dict, camera=None, spp: int
     reference : evaluate every light at every hit instead of a cut (see :func:`render_reference`)
     visibility : False casts no shadow rays (every light visible): unshadowed images, and the cost of
         the cut without Embree's share (benchmarks/bench_render.py)
+    pixels : (K, 2) int (x, y) of the pixels to render instead of the image or crop (e.g. a sample of
+        pixels for an error measurement); then the result's arrays are (K, 1, ...), pixel i in row i,
+        with the same values as those pixels of a whole-image render
 
     The caster must stay open during the call. LightcutsError for invalid parameters or inputs.
     """
     return _render(scene, caster, lights, trees, camera, spp, eps, max_cut, clamp, clamp_min_distance, envmap,
-                   seed, crop, progress, reference, visibility)
+                   seed, crop, progress, reference, visibility, pixels)
 
 
 def render_reference(scene, caster, lights: dict, camera=None, spp: int = 1, clamp: bool = True,
                      clamp_min_distance: float = 0.05, envmap=None, seed: int = 0, crop=None,
-                     progress: Callable[[int], object] | None = None, visibility: bool = True) -> RenderResult:
+                     progress: Callable[[int], object] | None = None, visibility: bool = True,
+                     pixels=None) -> RenderResult:
     """The brute-force reference: the same eye rays and shading as :func:`render_image`, every light
     at every hit with one shadow ray each (no trees). Arguments as :func:`render_image`."""
     return _render(scene, caster, lights, None, camera, spp, 0.0, 1, clamp, clamp_min_distance, envmap, seed,
-                   crop, progress, True, visibility)
+                   crop, progress, True, visibility, pixels)
 
 
 def warm_kernels() -> None:
