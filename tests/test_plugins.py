@@ -18,6 +18,7 @@ from numba import njit
 
 import lightcuts
 from lightcuts.accel import RAY_CASTERS, make_caster
+from lightcuts.accel.base import kernel_caster_of
 from lightcuts.errors import LightcutsError
 from lightcuts.registry import Registry, declare
 from lightcuts.trees import BUILDERS, METRICS, Metric, build_tree, register_metric, tree_spec, validate_tree
@@ -182,7 +183,7 @@ def test_caster_contract(name):
     assert not occluded[np.isfinite(t_ref)].any()
     np.testing.assert_array_equal(caster.occluded(org, dirs, 0.0, np.inf), prim_ref >= 0)
     if entry.trait("kernel_callable"):
-        assert caster.kernel_handles is not None and caster.packet_handles is not None
+        assert kernel_caster_of(caster) is not None
 
 
 # ------------------------------------------------------------------------------- the plan step

@@ -42,14 +42,15 @@ _F32_MAX = float(np.finfo(np.float32).max)
 
 class KernelCaster(NamedTuple):
     """What a kernel-callable caster hands to numba kernels (module docstring: the signatures).
-    Kernels take these six as consecutive arguments in this order (``*caster.kernel_caster``)."""
+    Kernels take these six as consecutive arguments in this order (``*caster.kernel_caster``); data
+    comes first because numba warns (spuriously) about any call whose first argument is a function."""
 
+    data: tuple
+    width: int
     intersect: Any
     occluded: Any
     packet_occluded: Any
     new_scratch: Any
-    width: int
-    data: tuple
 
 
 class RayCaster:
@@ -131,3 +132,24 @@ def check_mesh(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
     if faces.size and (faces.min() < 0 or faces.max() >= len(vertices)):
         raise LightcutsError(f"ray caster: faces index vertices outside [0, {len(vertices)})")
     return np.ascontiguousarray(vertices, np.float32), np.ascontiguousarray(faces, np.uint32)
+
+
+def kernel_caster_of(caster, key: str = "render.ray_caster") -> KernelCaster | None:
+    """The caster's :class:`KernelCaster`, checked (four callables, width 1..8, data a tuple); None
+    if it has none. LightcutsError naming ``key`` for a malformed one."""
+    kc = getattr(caster, "kernel_caster", None)
+    if kc is None:
+        return None
+    name = type(caster).__name__
+    if not isinstance(kc, tuple) or len(kc) != len(KernelCaster._fields):
+        raise LightcutsError(f"{key}: {name}.kernel_caster is not a KernelCaster of {len(KernelCaster._fields)} "
+                             f"fields")
+    kc = KernelCaster(*kc)
+    if not all(callable(f) for f in kc[2:]):
+        raise LightcutsError(f"{key}: {name}.kernel_caster: intersect, occluded, packet_occluded and new_scratch "
+                             f"must be njit functions")
+    if isinstance(kc.width, bool) or not isinstance(kc.width, (int, np.integer)) or not 1 <= kc.width <= 8:
+        raise LightcutsError(f"{key}: {name}.kernel_caster: width {kc.width!r} must be an integer from 1 to 8")
+    if not isinstance(kc.data, tuple):
+        raise LightcutsError(f"{key}: {name}.kernel_caster: data must be a tuple")
+    return kc._replace(width=int(kc.width))

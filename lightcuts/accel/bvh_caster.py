@@ -71,8 +71,8 @@ class BVHCaster(RayCaster):
     def kernel_caster(self) -> KernelCaster:
         from lightcuts.accel import bvh_kernels as bk
 
-        return KernelCaster(bk.bvh_intersect, bk.bvh_occluded, bk.bvh_packet_occluded, bk.bvh_new_scratch,
-                            PACKET_WIDTH, self._data)
+        return KernelCaster(self._data, PACKET_WIDTH, bk.bvh_intersect, bk.bvh_occluded, bk.bvh_packet_occluded,
+                            bk.bvh_new_scratch)
 
     def intersect(self, org, dirs, tnear=0.0, tfar=np.inf):
         from lightcuts.accel.bvh_kernels import bvh_intersect, bvh_new_scratch, intersect_rays
@@ -81,7 +81,7 @@ class BVHCaster(RayCaster):
         t = np.empty(len(org), np.float64)
         prim = np.empty(len(org), np.int32)
         if len(org):
-            intersect_rays(bvh_intersect, bvh_new_scratch, self._data, org, dirs, tnear, tfar, t, prim)
+            intersect_rays(self._data, bvh_intersect, bvh_new_scratch, org, dirs, tnear, tfar, t, prim)
         return t, prim
 
     def occluded(self, org, dirs, tnear=0.0, tfar=np.inf):
@@ -90,7 +90,7 @@ class BVHCaster(RayCaster):
         org, dirs, tnear, tfar = check_rays(org, dirs, tnear, tfar)
         out = np.empty(len(org), np.bool_)
         if len(org):
-            occluded_rays(bvh_occluded, bvh_new_scratch, self._data, org, dirs, tnear, tfar, out)
+            occluded_rays(self._data, bvh_occluded, bvh_new_scratch, org, dirs, tnear, tfar, out)
         return out
 
 

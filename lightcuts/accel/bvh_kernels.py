@@ -190,7 +190,7 @@ def bvh_packet_occluded(data, stack, pk, width, n):
 # Batch kernels over any KernelCaster (the casters' Python ``intersect`` / ``occluded``).
 
 @njit(parallel=True, cache=True, error_model="numpy")
-def intersect_rays(intersect, new_scratch, data, org, dirs, tnear, tfar, t_out, prim_out):
+def intersect_rays(data, intersect, new_scratch, org, dirs, tnear, tfar, t_out, prim_out):
     """Closest hit of each ray: org, dirs (n, 3), tnear, tfar (n,) float64; writes t_out (n,)
     float64 (inf on a miss) and prim_out (n,) int32 (-1 on a miss)."""
     n = org.shape[0]
@@ -204,7 +204,7 @@ def intersect_rays(intersect, new_scratch, data, org, dirs, tnear, tfar, t_out, 
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
-def occluded_rays(occluded, new_scratch, data, org, dirs, tnear, tfar, out):
+def occluded_rays(data, occluded, new_scratch, org, dirs, tnear, tfar, out):
     """Any hit of each ray segment: arrays as :func:`intersect_rays`; writes out (n,) bool."""
     n = org.shape[0]
     for c in prange((n + CHUNK - 1) // CHUNK):

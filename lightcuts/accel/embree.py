@@ -238,9 +238,9 @@ class EmbreeCaster(RayCaster):
         ``rtcOccluded1``, packets through ``rtcOccluded8`` (or 4). Valid until :meth:`close`."""
         from lightcuts.accel import embree_kernels as ek
 
-        return KernelCaster(ek.embree_intersect, ek.embree_occluded, ek.embree_packet_occluded,
-                            ek.embree_new_scratch, self._lib.packet_width,
-                            (self._lib.intersect1, self._lib.occluded1, self._lib.occluded_n, self._scene_handle()))
+        data = (self._lib.intersect1, self._lib.occluded1, self._lib.occluded_n, self._scene_handle())
+        return KernelCaster(data, self._lib.packet_width, ek.embree_intersect, ek.embree_occluded,
+                            ek.embree_packet_occluded, ek.embree_new_scratch)
 
     def intersect(self, org, dirs, tnear=0.0, tfar=np.inf):
         from lightcuts.accel.embree_kernels import intersect_rays

@@ -14,7 +14,8 @@ import numpy as np
 from lightcuts.config.schema import DEFAULT_RAY_CASTER
 from lightcuts.registry import Entry, Registry
 
-RAY_CASTERS: Registry = Registry("ray caster", group="lightcuts.ray_casters", builtins=("lightcuts.accel.embree", "lightcuts.accel.bvh_caster"))
+RAY_CASTERS: Registry = Registry("ray caster", group="lightcuts.ray_casters", builtins=("lightcuts.accel.embree",
+                                                                              "lightcuts.accel.bvh_caster"))
 
 
 def make_caster(scene, caster: str | Entry = DEFAULT_RAY_CASTER):
