@@ -119,7 +119,7 @@ class _Packets4:
     def __init__(self, caster):
         occluded4 = ctypes.CFUNCTYPE(None, *[ctypes.c_uint64] * 4)(("rtcOccluded4", caster._lib.lib))
         kc = caster.kernel_caster
-        self.kernel_caster = kc._replace(width=4, data=(*kc.data[:2], occluded4, kc.data[3]))
+        self.kernel_caster = kc._replace(width=4, data=(*kc.data[:3], occluded4, kc.data[4]))
 
 
 def test_packet_width_does_not_change_the_image(cornell):

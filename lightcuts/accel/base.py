@@ -2,35 +2,25 @@ r"""The ray-caster interface and the input checks every caster shares.
 
 A caster answers batches of rays from Python (:meth:`RayCaster.intersect` / :meth:`RayCaster.occluded`).
 A KERNEL-CALLABLE caster (registry trait ``kernel_callable=True``) also lets numba kernels (the
-renderer, the reference, the particle tracer) cast single rays and packets inside their own loops,
-through :attr:`RayCaster.kernel_caster`, a :class:`KernelCaster`:
+renderer, the reference, the particle tracer) cast single rays and packets inside their own loops:
+its :attr:`RayCaster.kernel_caster` is a :class:`KernelCaster` ``(data, width)``.
 
-``intersect(data, scratch, ox, oy, oz, dx, dy, dz, tnear, tfar) -> (t float64, prim int64)``
-    closest hit with tnear <= t <= tfar (t in units of |d|; inf and -1 on a miss, and for an empty
-    segment ``not tfar >= tnear``); the arguments after ``scratch`` are float64 scalars.
-``occluded(data, scratch, ox, oy, oz, dx, dy, dz, tnear, tfar) -> bool``
-    any hit with tnear <= t <= tfar.
-``packet_occluded(data, scratch, pk, width, n) -> None``
-    cast lanes 0..n-1 of the packet ``pk`` (lightcuts.accel.packets: the kernel fills lanes with
-    ``packet_set_ray``; the caster sets an occluded lane's tfar to -inf). A caster without packets
-    loops over the lanes (``packet_get_ray``, ``mark_lane_occluded``).
-``new_scratch(data) -> array``
-    the per-thread scratch the three calls above receive (allocated once per chunk of rays, never
-    per ray): Embree's RTCRayHit buffer, a BVH's traversal stack.
-``width``: int, lanes per packet (1..8; kernels fill up to ``width`` lanes before a packet call).
-``data``: a tuple of arrays / numbers / ctypes functions, the caster's state (Embree: its ctypes
-    functions and scene handle; a BVH: its node and triangle arrays).
+What an outside caster supplies (lightcuts.accel.kernel_api has the signatures):
 
-The four functions are ``@njit(cache=True)`` dispatchers defined at module level, and kernels
-receive them (and ``data``) as ARGUMENTS: numba compiles one specialisation of a kernel per caster
-type and caches it across processes. A dispatcher captured in a closure, or a ctypes function as a
-global, is not cached across processes. An outside caster registered with ``kernel_callable=True``
-supplies exactly this tuple and renders like a built-in one.
+1. four ``@njit`` device functions, ``intersect``, ``occluded``, ``packet_occluded`` and
+   ``new_scratch``, registered once with
+   ``tag = kernel_api.register_kernel_caster("mypackage.mycaster", intersect, occluded,
+   packet_occluded, new_scratch)``;
+2. ``kernel_caster`` returning ``KernelCaster((tag, *state), width)``: ``state`` is what its device
+   functions read (arrays, numbers, ctypes functions), ``width`` its packet width (1..8);
+3. registration as a caster with ``RAY_CASTERS.register(name, cls, kernel_callable=True)``.
+
+The kernels then compile once per kernel name and load from numba's cache in later processes.
 """
 
 from __future__ import annotations
 
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 
@@ -41,16 +31,11 @@ _F32_MAX = float(np.finfo(np.float32).max)
 
 
 class KernelCaster(NamedTuple):
-    """What a kernel-callable caster hands to numba kernels (module docstring: the signatures).
-    Kernels take these six as consecutive arguments in this order (``*caster.kernel_caster``); data
-    comes first because numba warns (spuriously) about any call whose first argument is a function."""
+    """What a kernel-callable caster hands to numba kernels (module docstring): ``data``, a tuple
+    starting with the caster's kernel tag, and ``width``, lanes per shadow-ray packet (1..8)."""
 
     data: tuple
     width: int
-    intersect: Any
-    occluded: Any
-    packet_occluded: Any
-    new_scratch: Any
 
 
 class RayCaster:
@@ -135,21 +120,20 @@ def check_mesh(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
 
 
 def kernel_caster_of(caster, key: str = "render.ray_caster") -> KernelCaster | None:
-    """The caster's :class:`KernelCaster`, checked (four callables, width 1..8, data a tuple); None
-    if it has none. LightcutsError naming ``key`` for a malformed one."""
+    """The caster's :class:`KernelCaster`, checked (data starts with a registered kernel tag, width
+    1..8); None if it has none. LightcutsError naming ``key`` for a malformed one."""
+    from lightcuts.accel.kernel_api import kernel_name
+
     kc = getattr(caster, "kernel_caster", None)
     if kc is None:
         return None
     name = type(caster).__name__
-    if not isinstance(kc, tuple) or len(kc) != len(KernelCaster._fields):
-        raise LightcutsError(f"{key}: {name}.kernel_caster is not a KernelCaster of {len(KernelCaster._fields)} "
-                             f"fields")
-    kc = KernelCaster(*kc)
-    if not all(callable(f) for f in kc[2:]):
-        raise LightcutsError(f"{key}: {name}.kernel_caster: intersect, occluded, packet_occluded and new_scratch "
-                             f"must be njit functions")
-    if isinstance(kc.width, bool) or not isinstance(kc.width, (int, np.integer)) or not 1 <= kc.width <= 8:
-        raise LightcutsError(f"{key}: {name}.kernel_caster: width {kc.width!r} must be an integer from 1 to 8")
-    if not isinstance(kc.data, tuple):
-        raise LightcutsError(f"{key}: {name}.kernel_caster: data must be a tuple")
-    return kc._replace(width=int(kc.width))
+    if not isinstance(kc, tuple) or len(kc) != 2:
+        raise LightcutsError(f"{key}: {name}.kernel_caster is not a KernelCaster (data, width)")
+    data, width = kc
+    if kernel_name(data) is None:
+        raise LightcutsError(f"{key}: {name}.kernel_caster: data must be a tuple starting with a tag from "
+                             f"lightcuts.accel.kernel_api.register_kernel_caster")
+    if isinstance(width, bool) or not isinstance(width, (int, np.integer)) or not 1 <= width <= 8:
+        raise LightcutsError(f"{key}: {name}.kernel_caster: width {width!r} must be an integer from 1 to 8")
+    return KernelCaster(data, int(width))

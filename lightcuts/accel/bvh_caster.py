@@ -46,7 +46,9 @@ class BVHCaster(RayCaster):
         self.name = name
         v = vertices.astype(np.float64)
         self._tri = np.ascontiguousarray(v[faces.astype(np.int64)].reshape(-1, 9))
-        self._data = (bvh.lo, bvh.hi, bvh.right, bvh.prim, self._tri, np.int64(bvh.depth + 1))
+        from lightcuts.accel.bvh_kernels import BVH_TAG
+
+        self._data = (BVH_TAG, bvh.lo, bvh.hi, bvh.right, bvh.prim, self._tri, np.int64(bvh.depth + 1))
 
     @classmethod
     def load(cls, path, vertices, faces) -> "BVHCaster":
@@ -69,28 +71,25 @@ class BVHCaster(RayCaster):
 
     @property
     def kernel_caster(self) -> KernelCaster:
-        from lightcuts.accel import bvh_kernels as bk
-
-        return KernelCaster(self._data, PACKET_WIDTH, bk.bvh_intersect, bk.bvh_occluded, bk.bvh_packet_occluded,
-                            bk.bvh_new_scratch)
+        return KernelCaster(self._data, PACKET_WIDTH)
 
     def intersect(self, org, dirs, tnear=0.0, tfar=np.inf):
-        from lightcuts.accel.bvh_kernels import bvh_intersect, bvh_new_scratch, intersect_rays
+        from lightcuts.accel.kernel_api import intersect_rays
 
         org, dirs, tnear, tfar = check_rays(org, dirs, tnear, tfar)
         t = np.empty(len(org), np.float64)
         prim = np.empty(len(org), np.int32)
         if len(org):
-            intersect_rays(self._data, bvh_intersect, bvh_new_scratch, org, dirs, tnear, tfar, t, prim)
+            intersect_rays(self._data, org, dirs, tnear, tfar, t, prim)
         return t, prim
 
     def occluded(self, org, dirs, tnear=0.0, tfar=np.inf):
-        from lightcuts.accel.bvh_kernels import bvh_new_scratch, bvh_occluded, occluded_rays
+        from lightcuts.accel.kernel_api import occluded_rays
 
         org, dirs, tnear, tfar = check_rays(org, dirs, tnear, tfar)
         out = np.empty(len(org), np.bool_)
         if len(org):
-            occluded_rays(self._data, bvh_occluded, bvh_new_scratch, org, dirs, tnear, tfar, out)
+            occluded_rays(self._data, org, dirs, tnear, tfar, out)
         return out
 
 

@@ -17,9 +17,9 @@ visited and the farther pushed with its entry distance; a popped node beyond the
 is skipped. Occlusion stops at the first hit (any hit). The stack lives in the caster's scratch
 (float64, ``2 * (depth + 1)``: node index and entry t per level), so it cannot overflow.
 
-Caster data (lightcuts.accel.base.KernelCaster.data): ``(lo, hi, right, prim, tri, stack)``: the
-BVH's node arrays (left child = node + 1), ``tri (F, 9) float64`` the corners of each triangle, and
-the stack size as int64.
+Kernel caster ``lightcuts.bvh`` (lightcuts.accel.kernel_api), shared by every BVH caster; its data
+``(BVH_TAG, lo, hi, right, prim, tri, stack)``: the BVH's node arrays (left child = node + 1),
+``tri (F, 9) float64`` the corners of each triangle, and the stack depth as int64.
 """
 
 from __future__ import annotations
@@ -27,12 +27,11 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from lightcuts.accel.kernel_api import register_kernel_caster
 from lightcuts.accel.packets import mark_lane_occluded, packet_get_ray
 
 #: Relative widening of the slab test's interval.
 SLACK = 1e-9
-#: Rays per prange iteration of the batch kernels.
-CHUNK = 64
 
 
 @njit(cache=True, forceinline=True, error_model="numpy")
@@ -107,7 +106,7 @@ def _box_entry(lo, hi, n, ox, oy, oz, ix, iy, iz, tnear, tfar):
 
 @njit(cache=True, error_model="numpy")
 def _traverse(data, stack, ox, oy, oz, dx, dy, dz, tnear, tfar, any_hit):
-    lo, hi, right, prim, tri = data[0], data[1], data[2], data[3], data[4]
+    lo, hi, right, prim, tri = data[1], data[2], data[3], data[4], data[5]
     if not tfar >= tnear or prim.shape[0] == 0:
         return np.inf, np.int64(-1)
     kx, ky, kz, sx, sy, sz = _ray_frame(dx, dy, dz)
@@ -158,12 +157,12 @@ def _traverse(data, stack, ox, oy, oz, dx, dy, dz, tnear, tfar, any_hit):
                 node = np.int64(stack[2 * top])
 
 
-# The kernel-caster interface (lightcuts.accel.base.KernelCaster) for a BVH.
+# Device functions of the kernel caster "lightcuts.bvh".
 
 @njit(cache=True, error_model="numpy")
 def bvh_new_scratch(data):
-    """Per-thread traversal stack, float64 ``(2 * data[5],)``."""
-    return np.empty(2 * data[5], np.float64)
+    """Per-thread traversal stack, float64 ``(2 * data[6],)``."""
+    return np.empty(2 * data[6], np.float64)
 
 
 @njit(cache=True, error_model="numpy")
@@ -187,33 +186,6 @@ def bvh_packet_occluded(data, stack, pk, width, n):
             mark_lane_occluded(pk, width, lane)
 
 
-# Batch kernels over any KernelCaster (the casters' Python ``intersect`` / ``occluded``).
-
-@njit(parallel=True, cache=True, error_model="numpy")
-def intersect_rays(data, intersect, new_scratch, org, dirs, tnear, tfar, t_out, prim_out):
-    """Closest hit of each ray: org, dirs (n, 3), tnear, tfar (n,) float64; writes t_out (n,)
-    float64 (inf on a miss) and prim_out (n,) int32 (-1 on a miss)."""
-    n = org.shape[0]
-    for c in prange((n + CHUNK - 1) // CHUNK):
-        scratch = new_scratch(data)
-        for i in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
-            t, p = intersect(data, scratch, org[i, 0], org[i, 1], org[i, 2], dirs[i, 0], dirs[i, 1], dirs[i, 2],
-                             tnear[i], tfar[i])
-            t_out[i] = t
-            prim_out[i] = p
-
-
-@njit(parallel=True, cache=True, error_model="numpy")
-def occluded_rays(data, occluded, new_scratch, org, dirs, tnear, tfar, out):
-    """Any hit of each ray segment: arrays as :func:`intersect_rays`; writes out (n,) bool."""
-    n = org.shape[0]
-    for c in prange((n + CHUNK - 1) // CHUNK):
-        scratch = new_scratch(data)
-        for i in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
-            out[i] = occluded(data, scratch, org[i, 0], org[i, 1], org[i, 2], dirs[i, 0], dirs[i, 1], dirs[i, 2],
-                              tnear[i], tfar[i])
-
-
 @njit(parallel=True, cache=True, error_model="numpy")
 def brute_force_rays(tri, org, dirs, tnear, tfar, t_out, prim_out):
     """Closest hit of each ray over ALL triangles with :func:`watertight_t` (the test reference);
@@ -231,3 +203,7 @@ def brute_force_rays(tri, org, dirs, tnear, tfar, t_out, prim_out):
                 best = f
         t_out[i] = best_t
         prim_out[i] = best
+
+
+#: First element of a BVH caster's kernel data.
+BVH_TAG = register_kernel_caster("lightcuts.bvh", bvh_intersect, bvh_occluded, bvh_packet_occluded, bvh_new_scratch)

@@ -236,11 +236,11 @@ class EmbreeCaster(RayCaster):
     def kernel_caster(self) -> KernelCaster:
         """The :class:`~lightcuts.accel.base.KernelCaster` over Embree: per-ray ``rtcIntersect1`` /
         ``rtcOccluded1``, packets through ``rtcOccluded8`` (or 4). Valid until :meth:`close`."""
-        from lightcuts.accel import embree_kernels as ek
+        from lightcuts.accel.embree_kernels import EMBREE_TAG
 
-        data = (self._lib.intersect1, self._lib.occluded1, self._lib.occluded_n, self._scene_handle())
-        return KernelCaster(data, self._lib.packet_width, ek.embree_intersect, ek.embree_occluded,
-                            ek.embree_packet_occluded, ek.embree_new_scratch)
+        lib = self._lib
+        return KernelCaster((EMBREE_TAG, lib.intersect1, lib.occluded1, lib.occluded_n, self._scene_handle()),
+                            lib.packet_width)
 
     def intersect(self, org, dirs, tnear=0.0, tfar=np.inf):
         from lightcuts.accel.embree_kernels import intersect_rays

@@ -94,6 +94,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from lightcuts.accel.kernel_api import register_kernel_caster
 from lightcuts.accel.packets import (INVALID_ID, PACKET_FIELDS, PACKET_FLOATS, lane_occluded,  # noqa: F401
                                      new_ray_packet, packet_set_ray, _address, _load_u32, _store_u32)
 
@@ -210,8 +211,8 @@ def occluded_rays(occluded1, scene, org, dirs, tnear, tfar, out):
                                   dirs[i, 0], dirs[i, 1], dirs[i, 2], tnear[i], tfar[i])
 
 
-# The kernel-caster interface (lightcuts.accel.base.KernelCaster) for Embree:
-# data = (intersect1, occluded1, occluded_n, scene) from EmbreeCaster.kernel_caster.
+# Device functions of the kernel caster "lightcuts.embree" (lightcuts.accel.kernel_api):
+# data = (EMBREE_TAG, intersect1, occluded1, occluded_n, scene) from EmbreeCaster.kernel_caster.
 
 @njit(cache=True)
 def embree_new_scratch(data):
@@ -222,16 +223,21 @@ def embree_new_scratch(data):
 @njit(cache=True, forceinline=True)
 def embree_intersect(data, buf, ox, oy, oz, dx, dy, dz, tnear, tfar):
     """KernelCaster.intersect: :func:`ray_intersect` with ``rtcIntersect1``."""
-    return ray_intersect(data[0], data[3], buf, ox, oy, oz, dx, dy, dz, tnear, tfar)
+    return ray_intersect(data[1], data[4], buf, ox, oy, oz, dx, dy, dz, tnear, tfar)
 
 
 @njit(cache=True, forceinline=True)
 def embree_occluded(data, buf, ox, oy, oz, dx, dy, dz, tnear, tfar):
     """KernelCaster.occluded: :func:`ray_occluded` with ``rtcOccluded1``."""
-    return ray_occluded(data[1], data[3], buf, ox, oy, oz, dx, dy, dz, tnear, tfar)
+    return ray_occluded(data[2], data[4], buf, ox, oy, oz, dx, dy, dz, tnear, tfar)
 
 
 @njit(cache=True, forceinline=True)
 def embree_packet_occluded(data, buf, pk, width, n):
     """KernelCaster.packet_occluded: :func:`packet_occluded` with ``rtcOccluded8`` / ``rtcOccluded4``."""
-    packet_occluded(data[2], width, data[3], pk, n)
+    packet_occluded(data[3], width, data[4], pk, n)
+
+
+#: First element of the Embree caster's kernel data.
+EMBREE_TAG = register_kernel_caster("lightcuts.embree", embree_intersect, embree_occluded, embree_packet_occluded,
+                                    embree_new_scratch)

@@ -53,6 +53,7 @@ import numpy as np
 from numba import njit, prange
 
 from lightcuts.accel.base import kernel_caster_of
+from lightcuts.accel.kernel_api import intersect, new_scratch
 from lightcuts.hashing import mix64 as _mix64
 from lightcuts.lights.lightset import LUMINANCE, LightSet
 from lightcuts.parallel import next_task, on_counter
@@ -197,10 +198,10 @@ def _scatter_wave(key, bounce, path, org, dirs, pw, thit, prim, face_normal, fac
 
 
 @njit(cache=True, nogil=True)
-def _trace_fused(cdata, intersect, new_scratch, key, path0, n, cdf, p0, e1, e2, normal, power, eps, face_normal,
+def _trace_fused(cdata, key, path0, n, cdf, p0, e1, e2, normal, power, eps, face_normal,
                  face_p0, albedo, emitter, max_bounces, rr_start, slots, counts, vpos, vnrm, vint, tasks):
-    """Whole paths path0 .. path0 + n - 1 with per-ray calls of the caster (its KernelCaster's
-    ``data``, ``intersect`` and ``new_scratch``, lightcuts.accel.base): one thread's share, chunks
+    """Whole paths path0 .. path0 + n - 1 with per-ray calls of the caster (its data ``cdata``,
+    lightcuts.accel.kernel_api): one thread's share, chunks
     of _FUSED_CHUNK paths taken from the counter ``tasks`` (int64 (1,), zero at the start; lightcuts.parallel.next_task). A ``nogil`` kernel on lightcuts.parallel's threads
     rather than a ``parallel=True`` one: it compiles in seconds less.
 
@@ -304,7 +305,7 @@ def _trace_chunk_fused(caster, handles, emitters, geometry, key, path0, n, power
     slots = 0 if count_only else max_bounces
     counts = np.empty(n, np.int64)
     vpos, vnrm, vint = (np.empty((n * slots, 3)) for _ in range(3))
-    args = (handles.data, handles.intersect, handles.new_scratch, key, path0, n, emitters.cdf, emitters.p0,
+    args = (handles.data, key, path0, n, emitters.cdf, emitters.p0,
             emitters.e1, emitters.e2, emitters.normal, power, eps, *geometry, max_bounces, rr_start, slots, counts,
             vpos, vnrm, vint)
     on_counter(_trace_fused, n, 2 * _FUSED_CHUNK, *args)

@@ -26,6 +26,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from lightcuts.accel.kernel_api import occluded, packet_occluded
 from lightcuts.accel.packets import lane_occluded, packet_set_ray
 from lightcuts.lights.lightset import LUMINANCE
 from lightcuts.render.bounds import DIRECTIONAL, cluster_error_bound_framed, receiver_frames
@@ -75,15 +76,15 @@ def _light_mg(typ, p0, p1, p2, nl0, nl1, nl2, c2, x0, x1, x2, n0, n1, n2, r0, r1
 
 @njit(cache=True, error_model="numpy")
 def light_mgv(j, light_f, x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, exponent,
-              clamp_d2, ray_offset, visibility, occluded, cdata, buf):
+              clamp_d2, ray_offset, visibility, cdata, buf):
     """``M G V`` per RGB channel of light j at the receiver x, with one shadow ray when M G > 0.
 
     light_f : the forest's light rows; x : receiver; n : unit shading normal (facing the viewer);
     r : mirror direction of wo; rd, rs, exponent : the receiver's material; clamp_d2 : squared
     clamping distance for indirect lights (0: off); ray_offset : shadow-ray origin offset along n and
     the gap left before the light, world units; visibility : False skips the shadow ray (V = 1:
-    unshadowed shading, and timing without rays); occluded, cdata, buf : the caster's ``occluded``, its
-    ``data`` and its scratch (lightcuts.accel.base.KernelCaster).
+    unshadowed shading, and timing without rays); cdata, buf : the caster's data and scratch
+    (lightcuts.accel.kernel_api).
     Returns ``(mgv_r, mgv_g, mgv_b, ratio, rays)``: ratio = unclamped / clamped G (>= 1),
     rays = shadow rays counted (0 or 1; 1 also for a light closer than ray_offset, not cast).
     """
@@ -132,7 +133,7 @@ def node_bound(k, node_b, node_bi, x0, x1, x2, n0, n1, n2, r0, r1, r2, fr, rd0, 
 
 
 @njit(cache=True, error_model="numpy")
-def _flush(cdata, buf, packet_occluded, width, pk, lanes, lane_slot, slot_node, slot_mgv, slot_ratio, node_b,
+def _flush(cdata, buf, width, pk, lanes, lane_slot, slot_node, slot_mgv, slot_ratio, node_b,
            t0, t1, t2):
     """Cast the waiting shadow rays (lanes 0..lanes-1 of the packet pk) and zero the estimate of
     each slot whose ray is occluded. Returns the cut's RGB total t less the estimates so removed."""
@@ -153,13 +154,13 @@ def _flush(cdata, buf, packet_occluded, width, pk, lanes, lane_slot, slot_node, 
 
 @njit(cache=True, error_model="numpy")
 def lightcut(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, exponent,
-             node_b, node_bi, roots, light_f, eps, max_cut, clamp_d2, ray_offset, visibility, occluded, cdata, buf,
-             packet_occluded, width, pk, heap, slot_node, slot_mgv, slot_ratio, lane_slot):
+             node_b, node_bi, roots, light_f, eps, max_cut, clamp_d2, ray_offset, visibility, cdata, buf, width, pk,
+             heap, slot_node, slot_mgv, slot_ratio, lane_slot):
     """Radiance reflected at x towards the viewer, by a lightcut through every tree of the forest.
 
     x, n, r, rd, rs, exponent : receiver as in :func:`light_mgv`; node_b, node_bi, roots, light_f :
-    the forest; eps : relative error threshold; max_cut : cut size limit; packet_occluded, width, pk :
-    the caster's packet call and width (lightcuts.accel.base.KernelCaster) and the packet
+    the forest; eps : relative error threshold; max_cut : cut size limit; width, pk :
+    the caster's packet width (lightcuts.accel.base.KernelCaster) and the packet
     (lightcuts.accel.packets.new_ray_packet); the remaining arguments: see
     :func:`light_mgv` and the module docstring (scratch).
     Returns ``(L_r, L_g, L_b, cut_size, shadow_rays, clamp_lost)``: clamp_lost = the cut's estimate
@@ -181,7 +182,7 @@ def lightcut(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, e
         k = roots[t]
         m0, m1, m2, ratio, nr = light_mgv(np.int64(node_bi[k, NB_REP] & REP_MASK), light_f, x0, x1, x2, n0, n1, n2,
                                           r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, exponent, clamp_d2, ray_offset,
-                                          visibility, occluded, cdata, buf)
+                                          visibility, cdata, buf)
         rays += nr
         slot_node[n_slots] = k
         slot_mgv[n_slots, 0] = m0
@@ -207,7 +208,7 @@ def lightcut(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, e
         if entry_bound(heap[0]) <= eps * luminance(t0, t1, t2):
             if lanes == 0:
                 break
-            t0, t1, t2 = _flush(cdata, buf, packet_occluded, width, pk, lanes, lane_slot, slot_node, slot_mgv,
+            t0, t1, t2 = _flush(cdata, buf, width, pk, lanes, lane_slot, slot_node, slot_mgv,
                                 slot_ratio, node_b, t0, t1, t2)
             lanes = 0
             continue
@@ -221,7 +222,7 @@ def lightcut(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, e
         jr = np.int64(node_bi[left + 1, NB_REP] & REP_MASK)
         if lanes + (jl != prep) + (jr != prep) > width:
             # Cast before s's estimate leaves t: a waiting ray of s may change that estimate.
-            t0, t1, t2 = _flush(cdata, buf, packet_occluded, width, pk, lanes, lane_slot, slot_node, slot_mgv,
+            t0, t1, t2 = _flush(cdata, buf, width, pk, lanes, lane_slot, slot_node, slot_mgv,
                                 slot_ratio, node_b, t0, t1, t2)
             lanes = 0
         # s's waiting ray, if any, follows s's representative: it stays with the left child (which
@@ -285,11 +286,11 @@ def lightcut(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, e
             t2 += m2 * node_b[c, NB_I + 2]
         n_slots += 1
         if lanes == width:
-            t0, t1, t2 = _flush(cdata, buf, packet_occluded, width, pk, lanes, lane_slot, slot_node, slot_mgv,
+            t0, t1, t2 = _flush(cdata, buf, width, pk, lanes, lane_slot, slot_node, slot_mgv,
                                 slot_ratio, node_b, t0, t1, t2)
             lanes = 0
     if lanes > 0:
-        _flush(cdata, buf, packet_occluded, width, pk, lanes, lane_slot, slot_node, slot_mgv, slot_ratio, node_b,
+        _flush(cdata, buf, width, pk, lanes, lane_slot, slot_node, slot_mgv, slot_ratio, node_b,
                t0, t1, t2)
 
     # The final sum again, from the cut itself: the running total above drifts by cancellation.

@@ -37,6 +37,7 @@ import numpy as np
 from numba import njit
 
 from lightcuts.accel.base import kernel_caster_of
+from lightcuts.accel.kernel_api import intersect, new_scratch
 from lightcuts.accel.packets import new_ray_packet
 from lightcuts.errors import LightcutsError
 from lightcuts.lights.environment import envmap_radiance
@@ -93,14 +94,14 @@ class RenderResult:
 
 
 @njit(cache=True, error_model="numpy")
-def _render_pixel(cdata, width, intersect, occluded, packet_occluded, cam, seed, spp, sx, sy, px, py,
+def _render_pixel(cdata, width, cam, seed, spp, sx, sy, px, py,
                   face_normal, albedo, specular, exponent, emission, node_b, node_bi, roots, light_f, light_i,
                   env_pixels, env_rotation, env_scale, eps, max_cut, clamp_d2, ray_offset, visibility, reference,
                   buf, pk, heap, slot_node, slot_mgv, slot_ratio, lane_slot):
     """All eye rays of pixel (px, py): returns (L_r, L_g, L_b, cut, shadow_rays, clamp_lost), cut
     and clamp_lost summed over the eye rays. An empty env_pixels (0, 0, 3) means no environment.
-    cdata, width, intersect, occluded, packet_occluded : the caster (lightcuts.accel.base.KernelCaster;
-    cdata its ``data``); buf : its scratch."""
+    cdata, width : the caster's data and packet width (lightcuts.accel.base.KernelCaster); buf : its
+    scratch."""
     o0, o1, o2 = cam[CAM_POSITION], cam[CAM_POSITION + 1], cam[CAM_POSITION + 2]
     a0 = 0.0
     a1 = 0.0
@@ -133,12 +134,11 @@ def _render_pixel(cdata, width, intersect, occluded, packet_occluded, cam, seed,
         rs0, rs1, rs2 = specular[prim, 0], specular[prim, 1], specular[prim, 2]
         if reference:
             res = all_lights(p0, p1, p2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, exponent[prim],
-                             light_f, light_i, clamp_d2, ray_offset, visibility, occluded, cdata, buf)
+                             light_f, light_i, clamp_d2, ray_offset, visibility, cdata, buf)
         else:
             res = lightcut(p0, p1, p2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, exponent[prim],
                            node_b, node_bi, roots, light_f, eps, max_cut, clamp_d2, ray_offset, visibility,
-                           occluded, cdata, buf, packet_occluded, width, pk, heap, slot_node, slot_mgv,
-                           slot_ratio, lane_slot)
+                           cdata, buf, width, pk, heap, slot_node, slot_mgv, slot_ratio, lane_slot)
         a0 += res[0]
         a1 += res[1]
         a2 += res[2]
@@ -149,7 +149,7 @@ def _render_pixel(cdata, width, intersect, occluded, packet_occluded, cam, seed,
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _render_band(cdata, width, intersect, occluded, packet_occluded, new_scratch, cam, seed, spp, sx, sy,
+def _render_band(cdata, width, cam, seed, spp, sx, sy,
                  x0, x1, y0, y1, face_normal, albedo, specular, exponent, emission, node_b, node_bi, roots, light_f,
                  light_i, env_pixels, env_rotation, env_scale, eps, max_cut, clamp_d2, ray_offset, visibility,
                  reference, pixels, out_rgb, out_cut, out_rays, out_lost, tasks):
@@ -182,7 +182,7 @@ def _render_band(cdata, width, intersect, occluded, packet_occluded, new_scratch
             if pixels.shape[0] > 0:
                 px, py = pixels[i, 0], pixels[i, 1]
             a0, a1, a2, cut, rays, lost = _render_pixel(
-                cdata, width, intersect, occluded, packet_occluded, cam, seed, spp, sx, sy, px, py,
+                cdata, width, cam, seed, spp, sx, sy, px, py,
                 face_normal, albedo, specular, exponent, emission, node_b, node_bi, roots, light_f, light_i,
                 env_pixels, env_rotation, env_scale, eps, max_cut, clamp_d2, ray_offset, visibility, reference,
                 buf, pk, heap, slot_node, slot_mgv, slot_ratio, lane_slot)
