@@ -35,7 +35,7 @@ SLACK = 1e-9
 
 
 @njit(cache=True, forceinline=True, error_model="numpy")
-def _ray_frame(dx, dy, dz):
+def ray_frame(dx, dy, dz):
     """Woop et al.'s permutation (kx, ky, kz) and shear (sx, sy, sz) for direction d."""
     ax, ay, az = abs(dx), abs(dy), abs(dz)
     kz = 0
@@ -55,7 +55,7 @@ def _ray_frame(dx, dy, dz):
 
 @njit(cache=True, forceinline=True, error_model="numpy")
 def watertight_t(tri, f, ox, oy, oz, kx, ky, kz, sx, sy, sz):
-    """Hit distance of the ray (origin o; frame from :func:`_ray_frame`) with triangle f of
+    """Hit distance of the ray (origin o; frame from :func:`ray_frame`) with triangle f of
     ``tri (F, 9)``, or inf if it misses (or lies in the triangle's plane). t may be negative."""
     ax_ = tri[f, kx] - (ox if kx == 0 else (oy if kx == 1 else oz))
     ay_ = tri[f, ky] - (ox if ky == 0 else (oy if ky == 1 else oz))
@@ -109,7 +109,7 @@ def _traverse(data, stack, ox, oy, oz, dx, dy, dz, tnear, tfar, any_hit):
     lo, hi, right, prim, tri = data[1], data[2], data[3], data[4], data[5]
     if not tfar >= tnear or prim.shape[0] == 0:
         return np.inf, np.int64(-1)
-    kx, ky, kz, sx, sy, sz = _ray_frame(dx, dy, dz)
+    kx, ky, kz, sx, sy, sz = ray_frame(dx, dy, dz)
     ix, iy, iz = 1.0 / dx if dx != 0.0 else np.inf, 1.0 / dy if dy != 0.0 else np.inf, \
         1.0 / dz if dz != 0.0 else np.inf
     best_t = tfar
@@ -193,7 +193,7 @@ def brute_force_rays(tri, org, dirs, tnear, tfar, t_out, prim_out):
     n = org.shape[0]
     for i in prange(n):
         ox, oy, oz, dx, dy, dz = org[i, 0], org[i, 1], org[i, 2], dirs[i, 0], dirs[i, 1], dirs[i, 2]
-        kx, ky, kz, sx, sy, sz = _ray_frame(dx, dy, dz)
+        kx, ky, kz, sx, sy, sz = ray_frame(dx, dy, dz)
         best_t = np.inf
         best = -1
         for f in range(tri.shape[0]):
