@@ -1,8 +1,11 @@
 r"""numba kernels that call Embree 4 (``rtcIntersect1`` / ``rtcOccluded1``) per ray, and
 ``rtcOccluded4`` / ``rtcOccluded8`` per packet of shadow rays.
 
-The per-ray device functions here are what other kernels (the cut evaluator, the particle tracer)
-call inside their own loops over rays; the batch kernels at the bottom are what
+The project's kernels (the cut evaluator, the reference, the particle tracer) reach these through
+lightcuts.accel.kernel_api: the device functions at the bottom are registered there as the kernel
+caster ``lightcuts.embree`` (data ``(EMBREE_TAG, intersect1, occluded1, occluded_n, scene)`` from
+``EmbreeCaster.kernel_caster``). The raw per-ray functions below also serve kernels written against
+Embree alone, with the handles; the batch kernels are what
 :class:`lightcuts.accel.embree.EmbreeCaster` runs for its ``intersect`` / ``occluded``.
 
 Handles

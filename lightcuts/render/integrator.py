@@ -21,9 +21,11 @@ compiles several times slower on a cold cache (docs/performance.md, "Renderer").
 computed by one thread and written to its own cells, so images do not depend on the thread count or
 the scheduling.
 
-numba caches each module's kernels keyed on that module's source file only: after editing bounds,
-shading, forest, heap, cut, reference or camera, delete ``lightcuts/render/__pycache__/*.nb[ic]``
-(or touch this file), or a cached kernel built from the old code may still run.
+The kernel compiles once per kernel caster (the tag in the caster's data, lightcuts.accel.kernel_api)
+and calls that caster's device functions directly. numba caches each module's kernels keyed on that
+module's source file only: after editing bounds, shading, forest, heap, cut, reference, camera or a
+caster's device functions (lightcuts/accel), delete ``lightcuts/render/__pycache__/*.nb[ic]`` (or
+touch this file), or a cached kernel built from the old code may still run.
 """
 
 from __future__ import annotations
