@@ -19,7 +19,7 @@ Measured 2026-11-22 (128 x 128 camera, the centre 64 x 64 crop, 101,592 lights; 
   c (235 at 2x, 213 at 4x), divisive-3d does not use c.
 
     python benchmarks/bench_cone_weight.py [--size 128] [--crop 64] [--factors 1,4]
-        [--builders agglomerative,divisive-6d,divisive-3d] [--eps 0.01,0.015,0.02,0.03,0.04]
+        [--builders agglomerative,divisive-6d,divisive-3d,saoh] [--eps 0.01,0.015,0.02,0.03,0.04]
         [--at-error 0.01] [--indirect 100000]
 
 Results (one row per builder, factor and eps, and the interpolated rows with eps empty) go to
@@ -64,7 +64,7 @@ def main() -> None:
     ap.add_argument("--size", type=int, default=128, help="camera resolution (square)")
     ap.add_argument("--crop", type=int, default=64, help="side of the centre crop rendered and checked")
     ap.add_argument("--factors", default="1,4", help="c as multiples of the default (diagonal / 16)")
-    ap.add_argument("--builders", default="agglomerative,divisive-6d,divisive-3d")
+    ap.add_argument("--builders", default="agglomerative,divisive-6d,divisive-3d,saoh")
     ap.add_argument("--eps", default="0.01,0.015,0.02,0.03,0.04")
     ap.add_argument("--at-error", type=float, default=0.01, help="mean relative error the curves are compared at")
     ap.add_argument("--indirect", type=int, default=100_000)

@@ -132,7 +132,7 @@ def main() -> None:
     row("crop-reference", ref_t, 1, f"speed-up {t_ref / t_crop:.0f}x; lightcuts error median "
         f"{100 * np.median(err):.2f}% p99 {100 * np.percentile(err, 99):.2f}%", b="-", resolution=cres)
 
-    for other in ("agglomerative", "divisive-6d", "divisive-3d"):
+    for other in ("agglomerative", "divisive-6d", "divisive-3d", "saoh"):
         if other == builder or other not in BUILDERS:
             continue
         t0 = time.perf_counter()

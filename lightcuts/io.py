@@ -23,10 +23,11 @@ from lightcuts.errors import LightcutsError
 #: The files a run may write into its output folder: a folder holding anything else is not
 #: replaced (an ``--out`` naming a folder of the user's is refused before any work).
 OUTPUT_FILES = frozenset({"image.exr", "image.png", "cutsize.png", "report.json", "reference.exr",
-                          "reference.png", "scaling.csv", "scaling.png", "compare"})
+                          "reference.png", "scaling.csv", "scaling.png", "render_scaling.csv", "render_scaling.png",
+                          "compare", "accel"})
 #: Sub-folders of a render's folder that belong to other commands (``lightcuts compare`` writes
 #: ``renders/<name>/compare/``): a render's output set carries them over instead of deleting them.
-SUBRUN_FOLDERS = ("compare",)
+SUBRUN_FOLDERS = ("compare", "accel")
 
 # Temporary files and folders of this process, removed by remove_temporaries (the signal handler
 # of lightcuts.cli). The lock makes creating a temporary, or swapping an output set into place, and

@@ -655,6 +655,29 @@ def test_scaling_command_end_to_end(tmp_path, capsys):
     assert cli_main(["scaling", str(cfg), "--sizes", "50000", "--builders", "greedy", "--out", str(out)]) == 2
 
 
+def test_render_scaling_rows_equal_single_renders(tmp_path):
+    import csv
+    import json
+
+    cfg = tmp_path / "box.yaml"
+    cfg.write_text("name: box\nseed: 3\nscene: {builtin: cornell}\ncamera: {resolution: [24, 24]}\n"
+                   "lights: {indirect: {count: 10}}\n")
+    out = tmp_path / "out"
+    assert cli_main(["scaling", str(cfg), "--render", "--sizes", "400,1200", "--builders", "divisive-6d",
+                     "--repeats", "1", "--out", str(out), "--no-progress"]) == 0
+    rows = list(csv.DictReader((out / "render_scaling.csv").open()))
+    assert [r["n_requested"] for r in rows] == ["400", "1200"]
+    assert (out / "render_scaling.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    for r in rows:
+        single = tmp_path / f"r{r['n_requested']}"
+        assert cli_main(["render", str(cfg), "--out", str(single), "--no-progress", "--set", "tree.builder=divisive-6d",
+                         "--set", f"lights.indirect.count={r['n_requested']}", "--set", "lights.direct.count=0"]) == 0
+        report = json.loads((single / "report.json").read_text())
+        assert float(r["cut_mean"]) == report["cut_size_mean"] and float(r["cut_max"]) == report["cut_size_max"]
+        assert float(r["shadow_rays_per_pixel"]) == report["shadow_rays_per_pixel"]
+        assert int(r["n_lights"]) == report["lights"]["oriented"] and float(r["render_s"]) > 0
+
+
 def test_nearly_unit_normals_stay_inside_their_cones():
     # Normals read back from float32 are unit only to ~1e-7; the cones must still contain them.
     lights = random_lights(500, "oriented", seed=14)

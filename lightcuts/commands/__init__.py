@@ -7,4 +7,4 @@ drives the stages in their order: ``scene`` -> ``lights`` -> ``trees`` -> ``acce
 """
 
 #: The command modules, in the order ``lightcuts --help`` lists them.
-COMMANDS = ("lights", "tree", "scaling", "render", "compare")
+COMMANDS = ("lights", "tree", "scaling", "render", "compare", "accel")

@@ -136,11 +136,11 @@ def run_compare(args) -> dict:
     from lightcuts.scene.build import image_size
 
     cfg = load_config(args.config, args.overrides)
+    if args.pixels < 0:
+        raise LightcutsError(f"--pixels {args.pixels}: must be >= 0")
     rows = resolve_rows(args, cfg)
     plans = [plan_run(cfg, render=True, tree=spec) for _, spec in rows]
     labels = [label for label, _ in rows]
-    if args.pixels < 0:
-        raise LightcutsError(f"--pixels {args.pixels}: must be >= 0")
     diff = labels[:2] if args.diff is None else _names(args.diff, "--diff")
     if len(diff) != 2 or any(d not in labels for d in diff) or diff[0] == diff[1]:
         if args.diff is not None:

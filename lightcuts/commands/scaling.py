@@ -11,6 +11,14 @@ reads. Outputs, written as one set (:func:`lightcuts.io.output_set`) to ``--out`
 - ``scaling.png``: log-log build time against N per builder, O(N) and O(N^2) trend lines, and each
   builder's fitted exponent in the legend.
 
+With ``--render`` (default sizes 10K, 30K, 100K, 300K and 1M) every tree also renders the config's
+image (after an untimed one-pixel render that loads the render kernel), the 2005 paper's point that
+the cut grows far slower than N; added to the set:
+
+- ``render_scaling.csv``: n_requested, n_lights, builder, cut_mean, cut_max, shadow_rays_per_pixel,
+  render_s;
+- ``render_scaling.png``: log-log average cut size and render time against N, with fitted exponents.
+
 The particle tracer returns about N VPLs (its paths end by Russian roulette), so the plots use the
 actual count. Timings are wall-clock on a possibly shared machine: compare builders within a run.
 """
@@ -26,10 +34,18 @@ from lightcuts.commands.common import add_set, progress_bar
 from lightcuts.errors import LightcutsError
 
 
+BUILD_SIZES = "50000,100000,200000,400000,800000"
+RENDER_SIZES = "10000,30000,100000,300000,1000000"
+
+
 def add_parser(sub) -> None:
     p = sub.add_parser("scaling", help="build time of every builder against N (the 2008 paper's Fig. 9)")
     p.add_argument("config")
-    p.add_argument("--sizes", default="50000,100000,200000,400000,800000", help="comma-separated light counts")
+    p.add_argument("--sizes", default=None,
+                   help=f"comma-separated light counts (default {BUILD_SIZES}; with --render {RENDER_SIZES})")
+    p.add_argument("--render", action="store_true",
+                   help="also render each tree: cut size, shadow rays and render time against N")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--builders", default=None,
                    help="comma-separated builder names (default: every builder without a size limit)")
     p.add_argument("--repeats", type=int, default=3, help="timed runs per point (median reported)")
@@ -64,8 +80,8 @@ def resolve_specs(text: str | None, cfg) -> list:
     return [tree_spec(b, cfg.tree.metric, cfg.tree.c, {"builder": "--builders"}, drop_unread=True) for b in names]
 
 
-def time_builder(lights, spec, repeats: int, seed: int) -> tuple[float, float, int]:
-    """(median s, min s, depth) of ``repeats`` timed build_tree calls (the caller warms up numba)."""
+def time_builder(lights, spec, repeats: int, seed: int) -> tuple[float, float, object]:
+    """(median s, min s, tree) of ``repeats`` timed build_tree calls (the caller warms up numba)."""
     from lightcuts.trees.build import build_tree
 
     times = []
@@ -74,7 +90,7 @@ def time_builder(lights, spec, repeats: int, seed: int) -> tuple[float, float, i
         t0 = time.perf_counter()
         tree = build_tree(lights, spec, seed=seed)
         times.append(time.perf_counter() - t0)
-    return float(np.median(times)), float(np.min(times)), tree.depth()
+    return float(np.median(times)), float(np.min(times)), tree
 
 
 def run(args) -> int:
@@ -90,9 +106,11 @@ def run_scaling(args) -> list[dict]:
     from lightcuts.commands.plan import plan_run
     from lightcuts.config import load_config
     from lightcuts.io import check_output_dir, output_set, save_csv
-    from lightcuts.report.scaling import CSV_FIELDS, format_table, plot_scaling
+    from lightcuts.report.scaling import (CSV_FIELDS, RENDER_CSV_FIELDS, format_render_table, format_table,
+                                          plot_render_scaling, plot_scaling)
 
-    sizes = parse_sizes(args.sizes)
+    render = bool(getattr(args, "render", False))
+    sizes = parse_sizes(args.sizes if args.sizes is not None else (RENDER_SIZES if render else BUILD_SIZES))
     repeats = int(args.repeats)
     if repeats < 1:
         raise LightcutsError(f"--repeats {repeats}: must be at least 1")
@@ -102,15 +120,15 @@ def run_scaling(args) -> list[dict]:
     specs = resolve_specs(args.builders, cfg)
     for spec in specs:
         spec.check_size(max(sizes), "--builders")
-    plan = plan_run(cfg, tree=specs[0])
+    plan = plan_run(cfg, render=render, tree=specs[0])
     out = check_output_dir(Path(args.out) if args.out else Path("renders") / f"{cfg.name}-scaling",
                            "--out" if args.out else "name")
     scene = plan.scene()
     caster = plan.make_caster(scene)
 
-    rows = []
+    rows, render_rows = [], []
     warmed = set()
-    with progress_bar(len(sizes) * len(specs), "scaling", unit="tree") as bar:
+    with progress_bar(len(sizes) * len(specs), "scaling", getattr(args, "no_progress", False), unit="tree") as bar:
         for n in sizes:
             plan_n = plan_run(load_config(args.config, base + [f"lights.indirect.count={n}"]), tree=specs[0])
             bar.set_postfix_str(f"tracing {n} VPLs")
@@ -120,15 +138,44 @@ def run_scaling(args) -> list[dict]:
                 if spec.name not in warmed:  # numba compiles (or loads its cache) on the first call
                     time_builder(lights, spec, 1, cfg.seed)
                     warmed.add(spec.name)
-                med, best, depth = time_builder(lights, spec, repeats, cfg.seed)
+                med, best, tree = time_builder(lights, spec, repeats, cfg.seed)
                 rows.append(dict(n_requested=n, n_lights=len(lights), builder=spec.name, median_s=med, min_s=best,
-                                 repeats=repeats, depth=depth))
+                                 repeats=repeats, depth=tree.depth()))
+                if render:
+                    bar.set_postfix_str(f"N={len(lights)} {spec.name}: rendering")
+                    render_rows.append(dict(n_requested=n, n_lights=len(lights), builder=spec.name,
+                                            **_render_stats(cfg, scene, caster, lights, tree)))
                 bar.update(1)
     metric = next((s.metric.name for s in specs if s.metric is not None), None)
     with output_set(out) as tmp:
         save_csv(tmp / "scaling.csv", rows, CSV_FIELDS)
         plot_scaling(tmp / "scaling.png", rows, f"{cfg.name}: light tree build time"
                      f"{f' ({metric})' if metric else ''}, median of {repeats}")
+        if render:
+            save_csv(tmp / "render_scaling.csv", render_rows, RENDER_CSV_FIELDS)
+            plot_render_scaling(tmp / "render_scaling.png", render_rows,
+                                f"{cfg.name}: {scene.camera.width}x{scene.camera.height}, eps {cfg.render.eps:g}")
     print(format_table(rows))
-    print(f"-> {out / 'scaling.csv'}, {out / 'scaling.png'}")
-    return rows
+    if render:
+        print(format_render_table(render_rows))
+    print(f"-> {out}")
+    return rows + render_rows
+
+
+def _render_stats(cfg, scene, caster, lights, tree) -> dict:
+    """Average and largest cut, shadow rays per pixel and render seconds of the config's image
+    lit by ``lights`` through ``tree``."""
+    from lightcuts.render.integrator import render_image
+
+    crop = cfg.render.crop
+    kwargs = dict(camera=scene.camera, spp=cfg.render.spp, seed=cfg.seed, eps=cfg.render.eps,
+                  max_cut=cfg.render.max_cut, clamp=cfg.render.clamp.enabled,
+                  clamp_min_distance=cfg.render.clamp.min_distance)
+    x0, y0 = (0, 0) if crop is None else crop[:2]
+    sets, trees = {lights.type: lights}, {lights.type: tree}
+    render_image(scene, caster, sets, trees, crop=(x0, y0, x0 + 1, y0 + 1), **kwargs)  # loads the kernel
+    t0 = time.perf_counter()
+    result = render_image(scene, caster, sets, trees, crop=crop, **kwargs)
+    seconds = time.perf_counter() - t0
+    return dict(cut_mean=float(result.cut_size.mean()), cut_max=float(result.cut_size.max()),
+                shadow_rays_per_pixel=result.shadow_rays / result.cut_size.size, render_s=seconds)

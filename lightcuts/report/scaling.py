@@ -72,3 +72,45 @@ def format_table(rows: list[dict]) -> str:
         t = [r["median_s"] for r in rows if r["builder"] == b]
         lines.append(f"fitted exponent {b}: {fitted_exponent(np.array(n), np.array(t)):.2f}")
     return "\n".join(lines)
+
+
+RENDER_CSV_FIELDS = ("n_requested", "n_lights", "builder", "cut_mean", "cut_max", "shadow_rays_per_pixel",
+                     "render_s")
+
+
+def plot_render_scaling(path: Path, rows: list[dict], title: str) -> Path:
+    """Log-log average cut size and render time against N per builder (``lightcuts scaling
+    --render``), each builder's fitted exponent in the legend; written atomically."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(11.0, 4.4), dpi=110, layout="constrained")
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(1, 2)
+    for b in dict.fromkeys(r["builder"] for r in rows):
+        n = np.array([r["n_lights"] for r in rows if r["builder"] == b], float)
+        for ax, key in zip(axes, ("cut_mean", "render_s")):
+            y = np.array([r[key] for r in rows if r["builder"] == b], float)
+            ax.loglog(n, y, "o-", label=f"{b} (N^{fitted_exponent(n, y):.2f})")
+    for ax, label in zip(axes, ("average cut size (nodes per eye ray)", "render time (s)")):
+        ax.set_xlabel("number of lights N")
+        ax.set_ylabel(label)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize="small")
+    fig.suptitle(title)
+    with atomic_path(path, suffix=".png") as tmp:
+        fig.savefig(tmp, format="png")
+    return path
+
+
+def format_render_table(rows: list[dict]) -> str:
+    head = f"{'N':>9} {'builder':<22} {'avg cut':>9} {'max cut':>8} {'rays/px':>9} {'render s':>9}"
+    lines = [head, "-" * len(head)]
+    for r in rows:
+        lines.append(f"{r['n_lights']:>9} {r['builder']:<22} {r['cut_mean']:>9.1f} {r['cut_max']:>8.0f} "
+                     f"{r['shadow_rays_per_pixel']:>9.1f} {r['render_s']:>9.3f}")
+    for b in dict.fromkeys(r["builder"] for r in rows):
+        n = np.array([r["n_lights"] for r in rows if r["builder"] == b], float)
+        cut = np.array([r["cut_mean"] for r in rows if r["builder"] == b], float)
+        lines.append(f"fitted exponent of the cut size, {b}: {fitted_exponent(n, cut):.2f}")
+    return "\n".join(lines)

@@ -33,7 +33,8 @@ def _as_metric(name, obj):
 
 BUILDERS: Registry = Registry(
     "builder", group="lightcuts.builders",
-    builtins=("lightcuts.trees.divisive", "lightcuts.trees.greedy", "lightcuts.trees.agglomerative"),
+    builtins=("lightcuts.trees.divisive", "lightcuts.trees.greedy", "lightcuts.trees.agglomerative",
+              "lightcuts.trees.saoh"),
     params=("metric", "c"), default_reads=("metric", "c"))
 METRICS: Registry = Registry("metric", group="lightcuts.metrics", builtins=("lightcuts.trees.metrics",),
                              params=("c",), coerce=_as_metric)

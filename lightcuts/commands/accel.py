@@ -1,0 +1,188 @@
+r"""``lightcuts accel CONFIG``: the ray casters side by side on the config's scene (the 2008 paper's Fig. 6).
+
+Per caster: its build time (the constructor, after an untimed build on a tiny mesh that loads its
+numba kernels), what its ``stats()`` reports (for BVHs E(boxes), E(tris), E(cost), nodes; for grids
+voxels, nu_1, depth, references per item; memory in bytes), and the times of two images at the
+config's resolution through the caster's batch API (median of ``--repeats``):
+
+- *eye*: one eye ray per pixel (the pixel centre's stratum, the renderer's ray), closest hit;
+- *shadows*: 16 eye rays per pixel (closest hit) and, from each hit, one shadow ray (occlusion) to a
+  light drawn uniformly, with the config's seed, from the config's lights (direct lights, VPLs, sun,
+  environment samples), offset as the renderer offsets its shadow rays.
+
+Every caster answers the same rays; the rays whose hit triangle (or occlusion) differs from the
+first caster's are counted (``eye_mismatch``, ``shadow_mismatch``), so a faster caster cannot be a
+wrong one. Outputs in ``renders/<name>/accel/`` (or ``--out``), one set: ``table.md``,
+``table.csv``, ``report.json`` (rows, config, machine).
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from lightcuts.commands.common import add_set, progress_bar
+from lightcuts.errors import LightcutsError
+
+#: Eye rays per pixel of the shadows image, each with one shadow ray.
+SHADOW_SPP = 16
+ALLOWED = ("table.md", "table.csv", "report.json")
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("accel", help="ray casters side by side: build, SAH statistics, eye and shadow images")
+    p.add_argument("config")
+    p.add_argument("--casters", default=None,
+                   help="comma-separated ray casters (default: every kernel-callable caster, embree first)")
+    p.add_argument("--repeats", type=int, default=3, help="timed runs of each image (median reported)")
+    p.add_argument("--out", default=None, help="output folder (default renders/<name>/accel)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_set(p)
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    run_accel(args)
+    return 0
+
+
+def resolve_casters(text: str | None) -> list:
+    """Caster entries from ``--casters`` (default every kernel-callable caster, ``embree`` first)."""
+    from lightcuts.accel.registry import RAY_CASTERS
+
+    if text is None:
+        entries = [e for e in RAY_CASTERS.entries() if e.trait("kernel_callable", False)]
+        return sorted(entries, key=lambda e: e.name != "embree")
+    names = [n.strip() for n in str(text).split(",") if n.strip()]
+    if not names or len(set(names)) != len(names):
+        raise LightcutsError(f"--casters {text!r}: expected distinct comma-separated caster names")
+    out = []
+    for n in names:
+        try:
+            out.append(RAY_CASTERS.entry(n))
+        except LightcutsError as exc:
+            raise LightcutsError(f"--casters: {exc}") from None
+    return out
+
+
+def run_accel(args) -> dict:
+    from lightcuts.commands.plan import plan_run
+    from lightcuts.config import load_config
+    from lightcuts.io import check_output_dir
+
+    cfg = load_config(args.config, args.overrides)
+    if args.repeats < 1:
+        raise LightcutsError(f"--repeats {args.repeats}: must be at least 1")
+    entries = resolve_casters(args.casters)
+    plan = plan_run(cfg)
+    out = check_output_dir(Path(args.out) if args.out else Path("renders") / cfg.name / "accel",
+                           "--out" if args.out else "name", ALLOWED)
+    return _run(args, cfg, plan, entries, out)
+
+
+def scene_rays(cfg, plan) -> dict:
+    """The scene and the rays of both images, cast by Embree where rays depend on hits (the shadow
+    rays start at the eye rays' hits): eye (org, dirs), shadow-image eye rays and shadow rays."""
+    from lightcuts.accel.registry import make_caster
+    from lightcuts.render.camera import eye_rays
+    from lightcuts.render.integrator import shadow_ray_offset
+
+    scene = plan.scene()
+    cam = scene.camera
+    eo, ed = eye_rays(cam, 1, cfg.seed, cfg.render.crop)
+    so, sd = eye_rays(cam, SHADOW_SPP, cfg.seed, cfg.render.crop)
+    eo, ed, so, sd = (a.reshape(-1, 3) for a in (eo, ed, so, sd))
+    with make_caster(scene, "embree") as embree:
+        lights = plan.lights(scene, embree, plan.environment())
+        t, prim = embree.intersect(so, sd, 0.0, np.inf)
+    hit = prim >= 0
+    p = so[hit] + t[hit, None] * sd[hit]
+    n = scene.face_normals[prim[hit]]
+    n = np.where((np.einsum("ij,ij->i", n, sd[hit]) > 0)[:, None], -n, n)  # the side the eye ray came from
+    targets = [(ls.position, ls.type == "directional") for ls in lights.values() if len(ls)]
+    if not targets:
+        raise LightcutsError(f"{cfg.name}: the config has no lights to cast shadow rays to")
+    pos = np.concatenate([q for q, _ in targets])
+    directional = np.concatenate([np.full(len(q), d) for q, d in targets])
+    pick = np.random.default_rng([cfg.seed, 0x61636365]).integers(0, len(pos), len(p))  # "acce"
+    offset = shadow_ray_offset(scene)
+    org = p + offset * n
+    dirs = np.where(directional[pick, None], pos[pick], pos[pick] - org)
+    tfar = np.where(directional[pick], np.inf, 1.0 - offset / np.maximum(np.linalg.norm(dirs, axis=1), 1e-300))
+    return {"scene": scene, "eye": (eo, ed), "shadow_eye": (so, sd), "shadow": (org, dirs, np.maximum(tfar, 0.0))}
+
+
+def _median_seconds(fn, repeats: int) -> tuple[float, object]:
+    times, value = [], None
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        value = fn()
+        times.append(time.perf_counter() - t0)
+    return float(np.median(times)), value
+
+
+def _warm(entry) -> None:
+    """Load (or compile) a caster's kernels on a one-triangle mesh, untimed."""
+    from lightcuts.accel.registry import make_caster
+
+    v = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]])
+    c = make_caster((v, np.array([[0, 1, 2]])), entry)
+    o, d = np.array([[0.2, 0.2, 1.0]]), np.array([[0.0, 0, -1]])
+    c.intersect(o, d, 0.0, np.inf)
+    c.occluded(o, d, 0.0, np.inf)
+    getattr(c, "close", lambda: None)()
+
+
+def _run(args, cfg, plan, entries, out: Path) -> dict:
+    from lightcuts.accel.registry import make_caster
+    from lightcuts.io import output_set, save_json
+    from lightcuts.report.accel import format_markdown, write_tables
+    from lightcuts.report.compare import machine
+
+    rays = scene_rays(cfg, plan)
+    scene = rays["scene"]
+    rows, first = [], None
+    with progress_bar(len(entries), f"{cfg.name}: casters", args.no_progress, unit="caster") as bar:
+        for entry in entries:
+            bar.set_postfix_str(entry.name)
+            _warm(entry)
+            t0 = time.perf_counter()
+            caster = make_caster(scene, entry)
+            build = time.perf_counter() - t0
+            stats = dict(caster.stats()) if hasattr(caster, "stats") else {}
+            eye_s, (_, eye_prim) = _median_seconds(lambda: caster.intersect(*rays["eye"], 0.0, np.inf), args.repeats)
+
+            def shadows():
+                _, prim = caster.intersect(*rays["shadow_eye"], 0.0, np.inf)
+                return prim, caster.occluded(*rays["shadow"][:2], 0.0, rays["shadow"][2])
+
+            shadow_s, (s_prim, blocked) = _median_seconds(shadows, args.repeats)
+            getattr(caster, "close", lambda: None)()
+            if first is None:
+                first = (eye_prim, s_prim, blocked)
+            n_eye, n_shadow = len(eye_prim), len(s_prim) + len(blocked)
+            rows.append({
+                "caster": entry.name, "triangles": scene.n_faces, "build_s": build,
+                "build_tris_per_s": scene.n_faces / max(build, 1e-12), **stats,
+                "eye_s": eye_s, "eye_mrays_per_s": n_eye / eye_s / 1e6, "shadows_s": shadow_s,
+                "shadows_mrays_per_s": n_shadow / shadow_s / 1e6,
+                "eye_mismatch": int((eye_prim != first[0]).sum()),
+                "shadow_mismatch": int((s_prim != first[1]).sum() + (blocked != first[2]).sum()),
+                "eye_rays": n_eye, "shadow_image_rays": n_shadow})
+            bar.update(1)
+    base = rows[0]
+    for r in rows:
+        r["eye_vs_first"] = r["eye_s"] / base["eye_s"]
+        r["shadows_vs_first"] = r["shadows_s"] / base["shadows_s"]
+    title = f"{cfg.name}: {scene.n_faces:,} triangles, {scene.camera.width}x{scene.camera.height}"
+    report = {"config": str(Path(args.config)), "name": cfg.name, "seed": cfg.seed,
+              "settings": cfg.model_dump(mode="json"), "machine": machine(), "repeats": args.repeats,
+              "shadow_spp": SHADOW_SPP, "rows": rows}
+    with output_set(out) as tmp:
+        write_tables(tmp, rows, title)
+        save_json(tmp / "report.json", report)
+    print(format_markdown(rows, title), end="")
+    print(f"-> {out}")
+    return report

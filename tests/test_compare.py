@@ -1,0 +1,131 @@
+"""``lightcuts compare``: rows equal the individual renders, one colour scale, resume and --force."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from conftest import cli_recording_work
+from lightcuts.cli import main
+from lightcuts.commands.compare import sample_pixels
+from lightcuts.errors import LightcutsError
+from lightcuts.report.compare import cut_colours
+
+ROOT = Path(__file__).parent.parent
+SMALL = ["--set", "camera.resolution=[40,40]", "--set", "lights.indirect.count=1500",
+         "--set", "lights.direct.count=128"]
+BUILDERS = "agglomerative,divisive-6d,divisive-3d"
+
+
+@pytest.fixture(scope="module")
+def compared(tmp_path_factory):
+    out = tmp_path_factory.mktemp("compare") / "cmp"
+    assert main(["compare", str(ROOT / "configs/cornell.yaml"), "--builders", BUILDERS, "--pixels", "200",
+                 "--out", str(out), "--no-progress", *SMALL]) == 0
+    return out, json.loads((out / "report.json").read_text())
+
+
+def test_rows_equal_the_individual_renders(compared, tmp_path):
+    out, report = compared
+    assert [r["label"] for r in report["rows"]] == BUILDERS.split(",")
+    for row in report["rows"]:
+        single = tmp_path / row["label"]
+        assert main(["render", str(ROOT / "configs/cornell.yaml"), "--out", str(single), "--no-progress",
+                     "--set", f"tree.builder={row['label']}", *SMALL]) == 0
+        r = json.loads((single / "report.json").read_text())
+        assert row["cut_mean"] == r["cut_size_mean"] and row["cut_max"] == r["cut_size_max"]
+        assert row["shadow_rays_per_pixel"] == r["shadow_rays_per_pixel"]
+        assert row["builder"] == r["builder"] and row["metric"] == r["metric"] and row["lights"] == r["lights"]
+        assert row["summed_s"] == pytest.approx(row["preprocess_s"] + row["image_s"])
+        assert 0 < row["err_median"] <= row["err_p99"] < 0.5 and row["pixels_compared"] > 100
+    table = (out / "table.md").read_text()
+    assert all(f"| {b} |" in table for b in BUILDERS.split(","))
+    assert (out / "table.csv").read_text().count("\n") == 4
+    assert report["machine"]["cores"] >= 1 and report["machine"]["numba"] and report["machine"]["embree"]
+
+
+def test_heatmaps_share_one_scale(compared):
+    out, report = compared
+    cuts = {}
+    for label in BUILDERS.split(","):
+        z = np.load(out / "rows" / f"{label}.npz")
+        cuts[label] = z["cut"]
+        png = np.asarray(Image.open(out / f"cutsize-{label}.png").convert("RGB"))
+        assert png.shape[:2] == cuts[label].shape
+        assert (png == cut_colours(cuts[label], report["cut_scale_max"])).all()
+    vmax = max(float(c.max()) for c in cuts.values())
+    assert report["cut_scale_max"] == vmax
+    # The same cut size has the same colour in every row's map, and only the largest one is the top colour.
+    a, b = (np.asarray(Image.open(out / f"cutsize-{x}.png").convert("RGB")) for x in ("agglomerative", "divisive-3d"))
+    same = cuts["agglomerative"] == cuts["divisive-3d"]
+    assert same.any() and (a[same] == b[same]).all()
+    top = cut_colours(np.array([[vmax]]), vmax)[0, 0]
+    holder = next(c for c in cuts.values() if c.max() == vmax)
+    assert (cut_colours(holder, vmax)[holder == vmax] == top).all()
+    assert not (cut_colours(holder, vmax)[holder < 0.9 * vmax] == top).all(axis=-1).any()
+
+
+def test_resume_skips_finished_rows_and_recomputes_changed_ones(tmp_path):
+    args = ["compare", str(ROOT / "configs/cornell.yaml"), "--builders", "divisive-6d,divisive-3d", "--pixels", "50",
+            "--out", str(tmp_path / "cmp"), "--no-progress", *SMALL]
+    rc, calls, err = cli_recording_work(args, tmp_path)
+    assert rc == 0 and calls.count("build_tree") >= 2, err
+    first = json.loads((tmp_path / "cmp" / "report.json").read_text())["rows"]
+    rc, calls, err = cli_recording_work(args, tmp_path)
+    assert rc == 0 and calls == [], err  # every row stored: no scene, no lights, no tree
+    again = json.loads((tmp_path / "cmp" / "report.json").read_text())["rows"]
+    assert again == first
+    # A new row computes only that row (the trees of one builder: its untimed warm-up and the timed one).
+    rc, calls, err = cli_recording_work(args[:3] + ["divisive-6d,divisive-3d,agglomerative"] + args[4:], tmp_path)
+    assert rc == 0 and calls.count("scene_from_config") == 1 and calls.count("build_tree") == 2, err
+    # A changed setting recomputes every row; so does --force.
+    for extra in (["--set", "render.eps=0.05"], ["--force"]):
+        rc, calls, err = cli_recording_work(args + extra, tmp_path)
+        assert rc == 0 and calls.count("build_tree") == 4, (extra, err)
+    eps = json.loads((tmp_path / "cmp" / "report.json").read_text())
+    assert eps["settings"]["render"]["eps"] == 0.02  # the last run was --force at the config's eps
+
+
+def test_an_interrupted_compare_keeps_its_finished_rows(tmp_path, scratch_registries):
+    from lightcuts.trees.registry import BUILDERS
+
+    def failing(*args):
+        raise LightcutsError("stopped")
+
+    BUILDERS.register("failing", failing, reads=())
+    out = tmp_path / "cmp"
+    args = ["compare", str(ROOT / "configs/cornell.yaml"), "--pixels", "20", "--out", str(out), "--no-progress", *SMALL]
+    assert main(args + ["--builders", "divisive-3d,failing"]) == 2  # "error: stopped"
+    assert sorted(p.name for p in (out / "rows").iterdir()) == ["divisive-3d.npz", "reference.npz"]
+    assert not (out / "table.md").exists()
+    stored = (out / "rows" / "divisive-3d.npz").stat().st_mtime_ns
+    assert main(args + ["--builders", "divisive-3d"]) == 0
+    assert (out / "rows" / "divisive-3d.npz").stat().st_mtime_ns == stored
+    assert (out / "table.md").exists()
+
+
+def test_pixel_sample_is_seeded_distinct_and_inside_the_window():
+    a = sample_pixels(64, 48, None, 300, seed=5)
+    assert (a == sample_pixels(64, 48, None, 300, seed=5)).all()
+    assert not (a == sample_pixels(64, 48, None, 300, seed=6)).all()
+    assert len({tuple(p) for p in a}) == 300 and (a[:, 0] < 64).all() and (a[:, 1] < 48).all()
+    crop = sample_pixels(64, 48, (10, 5, 20, 9), 1000, seed=5)
+    assert len(crop) == 40 and crop[:, 0].min() == 10 and crop[:, 0].max() == 19 and crop[:, 1].max() == 8
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--builders", "agglomerative,nope"], "--builders: unknown builder 'nope'"),
+    (["--builders", "divisive-3d,divisive-3d"], "--builders 'divisive-3d,divisive-3d': a name is given twice"),
+    (["--builders", "divisive-3d,divisive-6d", "--diff", "divisive-3d,saoh"], "--diff 'divisive-3d,saoh'"),
+    (["--builders", "divisive-3d", "--metrics", "walter2008"], "--metrics: none of the builders"),
+    (["--metrics", "nope"], "--metrics: unknown metric 'nope'"),
+    (["--pixels", "-1"], "--pixels -1: must be >= 0"),
+])
+def test_bad_options_one_line_nothing_built(tmp_path, extra, message):
+    rc, calls, err = cli_recording_work(["compare", str(ROOT / "configs/cornell.yaml"), "--out",
+                                         str(tmp_path / "cmp"), *extra], tmp_path)
+    assert rc == 2 and calls == [] and not (tmp_path / "cmp").exists()
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0], err
