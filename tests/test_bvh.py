@@ -121,7 +121,7 @@ def test_sah_statistics_by_hand():
     s = make_caster((v, f), "bvh-sah").bvh.sah_stats()
     assert s["E_boxes"] == pytest.approx(10 / 6) and s["E_boxes_internal"] == pytest.approx(1.0)
     assert s["E_tris"] == pytest.approx(4 / 6) and s["E_cost"] == pytest.approx(1.5)
-    assert s["nodes"] == 3 and s["bytes"] == 3 * (2 * 24 + 3 * 4)
+    assert s["nodes"] == 3 and s["depth"] == 1 and s["memory_bytes"] == 3 * (2 * 24 + 3 * 4)
 
 
 def test_sah_builder_picks_the_best_split():

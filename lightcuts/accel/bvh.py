@@ -66,8 +66,9 @@ class FlatBVH:
     def sah_stats(self) -> dict:
         """Walter et al. 2008 Fig. 6: ``E_boxes`` (every node, root and leaves included),
         ``E_boxes_internal`` (internal nodes only), ``E_tris`` (leaves), ``E_cost`` = 0.5 E_boxes +
-        E_tris, plus ``nodes`` and ``bytes``. An empty BVH or a root box of zero area gives zeros."""
-        out = {"nodes": self.n_nodes, "bytes": self.nbytes}
+        E_tris, plus ``nodes``, ``depth`` and ``memory_bytes`` (node arrays). An empty BVH or a root
+        box of zero area gives zeros."""
+        out = {"nodes": self.n_nodes, "depth": self.depth, "memory_bytes": self.nbytes}
         if self.n_nodes == 0:
             return {**out, "E_boxes": 0.0, "E_boxes_internal": 0.0, "E_tris": 0.0, "E_cost": 0.0}
         e = self.hi - self.lo
@@ -96,9 +97,14 @@ class FlatBVH:
             n_faces = int(z["n_faces"])
         except (TypeError, ValueError):
             raise LightcutsError(f"{path}: n_faces: not an integer") from None
-        bvh = cls(*(np.ascontiguousarray(z[k], np.float64 if k in ("lo", "hi") else np.int32)
-                    if z[k].dtype.kind in "biuf" else z[k] for k in NODE_KEYS),
-                  n_faces=n_faces, builder=str(z["builder"]) if "builder" in z else "")
+        arrays = []
+        for k in NODE_KEYS:
+            a = z[k]
+            want = np.float64 if k in ("lo", "hi") else np.int32
+            if a.dtype.kind not in ("f" if want is np.float64 else "iu"):
+                raise LightcutsError(f"{path}: {k}: has dtype {a.dtype}; expected {np.dtype(want)}")
+            arrays.append(np.ascontiguousarray(a, want))
+        bvh = cls(*arrays, n_faces=n_faces, builder=str(z["builder"]) if "builder" in z else "")
         bvh.check(str(path))
         return bvh
 

@@ -60,6 +60,12 @@ class BVHCaster(RayCaster):
         """Save the BVH (.npz, keys in lightcuts.accel.bvh)."""
         self.bvh.save(path)
 
+    def stats(self) -> dict:
+        """The BVH's SAH statistics, nodes, depth and memory (:meth:`FlatBVH.sah_stats`; memory counts
+        the node arrays and the caster's (F, 9) float64 triangle corners)."""
+        s = self.bvh.sah_stats()
+        return {**s, "memory_bytes": s["memory_bytes"] + self._tri.nbytes}
+
     def close(self) -> None:
         """Nothing to release (numpy arrays); for symmetry with the Embree caster."""
 
