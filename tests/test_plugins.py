@@ -275,6 +275,28 @@ def test_a_caster_registered_at_run_time_renders(tmp_path, scratch_registries):
     assert plan_run(cfg, render=True).caster.name == "brute-force"
 
 
+@pytest.mark.parametrize("kernel_caster, message", [
+    (((np.zeros(3),), 8), "data must be a tuple starting with a tag"),
+    (((np.zeros(0, np.dtype([("no.such.caster", np.uint8)])),), 8), "data must be a tuple starting with a tag"),
+    ("not a tuple", "is not a KernelCaster"),
+])
+def test_a_malformed_kernel_caster_is_one_line_error(kernel_caster, message):
+    from lightcuts.render.integrator import render_image
+    from lightcuts.scene.cornell import cornell_box
+
+    class Bad:
+        pass
+
+    bad = Bad()
+    bad.kernel_caster = kernel_caster
+    with pytest.raises(LightcutsError, match=f"^render.ray_caster: Bad.kernel_caster.*{message}"):
+        render_image(cornell_box(), bad, {}, {}, crop=(0, 0, 1, 1))
+    tag = _brute_tag()
+    bad.kernel_caster = ((tag, np.zeros((0, 9))), 9)
+    with pytest.raises(LightcutsError, match="width 9 must be an integer from 1 to 8"):
+        render_image(cornell_box(), bad, {}, {}, crop=(0, 0, 1, 1))
+
+
 # ------------------------------------------------------------------------------- the plan step
 
 def _cli(*args, cwd):

@@ -151,10 +151,10 @@ def _render_pixel(cdata, width, cam, seed, spp, sx, sy, px, py,
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _render_band(cdata, width, cam, seed, spp, sx, sy,
-                 x0, x1, y0, y1, face_normal, albedo, specular, exponent, emission, node_b, node_bi, roots, light_f,
-                 light_i, env_pixels, env_rotation, env_scale, eps, max_cut, clamp_d2, ray_offset, visibility,
-                 reference, pixels, out_rgb, out_cut, out_rays, out_lost, tasks):
+def _render_band(cdata, width, cam, seed, spp, sx, sy, x0, x1, y0, y1, face_normal, albedo, specular, exponent,
+                 emission, node_b, node_bi, roots, light_f, light_i, env_pixels, env_rotation, env_scale, eps,
+                 max_cut, clamp_d2, ray_offset, visibility, reference, pixels, out_rgb, out_cut, out_rays, out_lost,
+                 tasks):
     """Render pixels [x0, x1) x [y0, y1) (full-image coordinates) into the band's output rows: one
     thread's share, chunks of CHUNK pixels taken from the counter ``tasks`` (int64 (1,), zero at the
     start; lightcuts.parallel.next_task) until none is left. A non-empty ``pixels`` ((K, 2) int64,
