@@ -195,9 +195,11 @@ def test_no_ray_slips_through_shared_edges_and_vertices(name):
 
 @pytest.mark.parametrize("name", BVH_CASTERS)
 def test_render_equals_embree(name):
-    """The Cornell box, 24 x 24, the same lights and tree: the cut sizes agree except where a
-    receiver moved by rounding (the BVH's float64 hit point against Embree's float32 one) flips a stop
-    test; pixels agree to rounding except those, and both are bounded here."""
+    """The Cornell box, 24 x 24, the same lights and tree. Embree's float32 t leaves a hit point off
+    its surface by rounding, the BVH's float64 one does not: a receiver coplanar with lights (VPLs on
+    the same wall) then sees them at a cosine of exactly 0 or of +-rounding, which can turn a node's
+    bound from zero to tiny and change the cut's size (measured here: 21 of 576 pixels). Elsewhere
+    the images agree to rounding (3.7e-6 relative at most, measured). Both are bounded."""
     from lightcuts.lights.direct import direct_lights
     from lightcuts.lights.indirect import indirect_lights
     from lightcuts.lights.lightset import LightSet
