@@ -1,4 +1,4 @@
-"""Command line: ``lightcuts lights|tree|scaling|render CONFIG`` (one module each in lightcuts.commands).
+"""Command line: ``lightcuts lights|tree|scaling|render|reference CONFIG`` (one module each in lightcuts.commands).
 
 User errors (LightcutsError) print one line ``error: ...`` and exit with status 2. Ctrl-C (SIGINT)
 and SIGTERM print ``error: interrupted`` / ``error: terminated``, remove the run's temporary files

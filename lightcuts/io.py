@@ -24,10 +24,12 @@ from lightcuts.errors import LightcutsError
 #: replaced (an ``--out`` naming a folder of the user's is refused before any work).
 OUTPUT_FILES = frozenset({"image.exr", "image.png", "cutsize.png", "report.json", "reference.exr",
                           "reference.png", "scaling.csv", "scaling.png", "render_scaling.csv", "render_scaling.png",
-                          "compare", "accel"})
+                          "compare", "accel", "reference", "mitsuba.exr", "mitsuba.png", "lightcuts.exr",
+                          "lightcuts.png"})
 #: Sub-folders of a render's folder that belong to other commands (``lightcuts compare`` writes
-#: ``renders/<name>/compare/``): a render's output set carries them over instead of deleting them.
-SUBRUN_FOLDERS = ("compare", "accel")
+#: ``renders/<name>/compare/``, ``lightcuts reference`` ``renders/<name>/reference/``): a render's
+#: output set carries them over instead of deleting them.
+SUBRUN_FOLDERS = ("compare", "accel", "reference")
 
 # Temporary files and folders of this process, removed by remove_temporaries (the signal handler
 # of lightcuts.cli). The lock makes creating a temporary, or swapping an output set into place, and

@@ -23,18 +23,18 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from lightcuts.cluster.cones import cone_from_box
+from lightcuts.cluster.kd_build import kd_build, kd_build_threaded, kd_new
+from lightcuts.cluster.kd_merge import kd_merge, kd_merge_batch, kd_merge_batch_finish, kd_subtree, kd_wants_rebuild
+from lightcuts.cluster.kd_search import best_matches_after_merges
+from lightcuts.cluster.kd_tree import (I_ACTIVE, I_BUILT, I_FIRST_LEAF, KD_SUBTREES, N_AXIS, N_EMIN, N_HMIN,
+                                       N_IMIN, N_LMAX, N_SPLIT, NE_MIN, NH_MIN, NL_MAX, S_HI, S_I, S_LO, S_NHI, S_NLO,
+                                       SLOT_DATA, KdTree)
 from lightcuts.errors import LightcutsError
 from lightcuts.lights.lightset import LightSet
+from lightcuts.parallel import on_threads
 from lightcuts.trees.agglomerative import agglomerative, agglomerative_stats
 from lightcuts.trees.build import build_tree
-from lightcuts.trees.cones import cone_from_box
-from lightcuts.parallel import on_threads
-from lightcuts.trees.kd_build import kd_build, kd_build_threaded, kd_new
-from lightcuts.trees.kd_merge import kd_merge, kd_merge_batch, kd_merge_batch_finish, kd_subtree, kd_wants_rebuild
-from lightcuts.trees.kd_search import best_matches_after_merges
-from lightcuts.trees.kd_tree import (I_ACTIVE, I_BUILT, I_FIRST_LEAF, KD_SUBTREES, N_AXIS, N_EMIN, N_HMIN, N_IMIN,
-                                     N_LMAX, N_SPLIT, NE_MIN, NH_MIN, NL_MAX, S_HI, S_I, S_LO, S_NHI, S_NLO, SLOT_DATA,
-                                     KdTree)
 from lightcuts.trees.metrics import Metric, metric_eval
 from lightcuts.trees.registry import get_metric
 from lightcuts.trees.validate import validate_tree
@@ -175,7 +175,7 @@ def test_kd_tree_storage_and_bounds_through_merges_and_rebuilds():
     position, normal, luminance = random_arrays(n, "oriented", rng, face_normals=True)
     merges = random_merges(n, n - 2, rng)
     order = rng.permutation(n)
-    kd, work = kd_new(position, normal, luminance, order, 4)
+    kd, work = kd_new(position, position, normal, luminance, order, 4)
     kd_build(kd, work)
     # Cluster i < n is light order[i].
     lights = position[order], normal[order], luminance[order]
@@ -198,7 +198,7 @@ def test_kd_merge_batches_on_threads():
     lights = position[order], normal[order], luminance[order]
     left = np.full(2 * n - 1, -1, np.int32)
     right = np.full(2 * n - 1, -1, np.int32)
-    trees = [kd_new(*lights, np.arange(n), 8) for _ in range(2)]
+    trees = [kd_new(lights[0], *lights, np.arange(n), 8) for _ in range(2)]
     for kd, work in trees:
         kd_build(kd, work)
     merges = []
@@ -244,7 +244,7 @@ def test_kd_rebuild_on_threads_is_the_serial_rebuild():
     order = rng.permutation(n)
     trees = []
     for threaded in (False, True):
-        kd, work = kd_new(position, normal, luminance, order, 8)
+        kd, work = kd_new(position, position, normal, luminance, order, 8)
         if threaded:
             kd_build_threaded(kd, work, parallel_min=0)
         else:

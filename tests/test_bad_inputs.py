@@ -106,6 +106,21 @@ CASES = [
     ("config-fov-180", ["render", "bad.yaml"], _config(camera__fov=180), None),
     ("config-negative-count", ["render", "bad.yaml"], _config(lights__direct__count=-1), None),
     ("config-max-cut-0", ["render", "bad.yaml"], _config(render__max_cut=0), None),
+    # procedural scenes
+    ("procedural-unknown-key", ["render", "bad.yaml"],
+     _config(scene={"procedural": {"type": "kitchen", "triangels": 20000}}), None),
+    ("procedural-unknown-type", ["render", "bad.yaml"], _config(scene={"procedural": {"type": "castle"}}), None),
+    ("procedural-no-type", ["render", "bad.yaml"], _config(scene={"procedural": {"triangles": 20000}}), None),
+    ("procedural-few-triangles", ["render", "bad.yaml"],
+     _config(scene={"procedural": {"type": "kitchen", "triangles": 5}}), None),
+    ("procedural-rooms-0", ["render", "bad.yaml"], _config(scene={"procedural": {"type": "rooms", "rooms": 0}}), None),
+    ("procedural-rooms-float", ["render", "bad.yaml"],
+     _config(scene={"procedural": {"type": "rooms", "rooms": 2.5}}), None),
+    ("procedural-param-not-read", ["render", "bad.yaml"],
+     _config(scene={"procedural": {"type": "kitchen", "rooms": 4}}), None),
+    ("procedural-gallery-no-meshes", ["render", "bad.yaml"], _config(scene={"procedural": {"type": "gallery"}}), None),
+    ("procedural-and-builtin", ["render", "bad.yaml"],
+     _config(scene={"builtin": "cornell", "procedural": {"type": "kitchen"}}), None),
     # --set
     ("set-not-yaml", ["render", "run.yaml", "--set", "name=[oops"], None, None),
     ("set-no-equals", ["render", "run.yaml", "--set", "render.eps"], None, None),
@@ -319,9 +334,11 @@ def test_signal_during_render(tmp_path, sig, code, word):
 _KEYS = ["name", "seed", "scene", "builtin", "meshes", "file", "materials", "floor", "albedo", "emission",
          "camera", "resolution", "fov", "position", "lights", "direct", "indirect", "count", "sun", "direction",
          "irradiance", "environment", "procedural", "tree", "builder", "metric", "c", "render", "eps", "spp",
-         "crop", "exposure", "clamp", "enabled", "max_cut", "ray_caster", "scale", "rotate", "translate"]
+         "crop", "exposure", "clamp", "enabled", "max_cut", "ray_caster", "scale", "rotate", "translate",
+         "type", "triangles", "rooms"]
 _SCALARS = (st.none() | st.booleans() | st.integers(-2**70, 2**70) | st.floats(allow_nan=True)
-            | st.text(max_size=8) | st.sampled_from(["cornell", "agglomerative", "walter2008", "sky", "x.obj"]))
+            | st.text(max_size=8)
+            | st.sampled_from(["cornell", "agglomerative", "walter2008", "sky", "x.obj", "kitchen", "gallery"]))
 _TREES = st.recursive(_SCALARS, lambda kids: st.lists(kids, max_size=4)
                       | st.dictionaries(st.sampled_from(_KEYS) | st.text(max_size=4) | st.integers(), kids,
                                         max_size=5), max_leaves=25)

@@ -13,11 +13,11 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from numba import njit
 
+from lightcuts.errors import LightcutsError
+from lightcuts.lights.lightset import LUMINANCE, LightSet
 from lightcuts.render.bounds import (BOUND_SLACK, DIRECTIONAL, OMNI, ORIENTED, box_distance2, cluster_error_bound,
                                      cone_cos_bound, geometric_bound, material_bound, max_cos_in_box)
-from lightcuts.lights.lightset import LUMINANCE, LightSet
 from lightcuts.render.bounds import receiver_frames
-from lightcuts.errors import LightcutsError
 from lightcuts.render.cut import _light_mg, node_bound
 from lightcuts.render.forest import (LF_INDIRECT, LF_NRM, LF_POS, LF_TYPE, NB_I, NB_REP, NF_I, NK_LEFT, NK_REP,
                                      NK_RIGHT, REP_BITS, build_forest, pack_nodes)

@@ -129,3 +129,31 @@ def test_bad_options_one_line_nothing_built(tmp_path, extra, message):
     assert rc == 2 and calls == [] and not (tmp_path / "cmp").exists()
     lines = err.strip().splitlines()
     assert len(lines) == 1 and message in lines[0], err
+
+
+def test_mitsuba_row_at_equal_time(tmp_path):
+    pytest.importorskip("mitsuba")
+    out = tmp_path / "cmp"
+    assert main(["compare", str(ROOT / "configs/cornell.yaml"), "--builders", "divisive-6d,agglomerative",
+                 "--pixels", "0", "--out", str(out), "--no-progress", "--mitsuba", "--mitsuba-spp", "32", *SMALL]) == 0
+    m = json.loads((out / "report.json").read_text())["mitsuba"]
+    row = next(r for r in json.loads((out / "report.json").read_text())["rows"] if r["label"] == "agglomerative")
+    assert m["lightcuts_row"] == "agglomerative" and m["budget_s"] == row["image_s"] == m["lightcuts"]["seconds"]
+    assert m["equal_time"]["spp"] >= 1 and m["reference_spp"] == 32
+    # Both renderers compute the same light transport (up to clamping and the path tracer's noise).
+    for r in (m["lightcuts"], m["equal_time"]):
+        assert 0.85 < r["energy_ratio"] < 1.15, r
+    assert "Lightcuts and path tracing at equal time" in (out / "table.md").read_text()
+    for name in ("reference", "equal_time"):
+        assert (out / f"mitsuba-{name}.exr").is_file() and (out / f"mitsuba-{name}.png").is_file()
+
+
+def test_a_render_keeps_the_compare_folder(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    cfg = str(ROOT / "configs/cornell.yaml")
+    assert main(["compare", cfg, "--builders", "divisive-3d", "--pixels", "0", "--no-progress", *SMALL]) == 0
+    table = (tmp_path / "renders/cornell/compare/table.md").read_text()
+    assert main(["render", cfg, "--no-progress", *SMALL]) == 0
+    assert (tmp_path / "renders/cornell/image.exr").is_file()
+    assert (tmp_path / "renders/cornell/compare/table.md").read_text() == table
+    assert (tmp_path / "renders/cornell/compare/rows/divisive-3d.npz").is_file()

@@ -13,8 +13,9 @@ import pytest
 import lightcuts
 
 PACKAGE = Path(lightcuts.__file__).parent
-#: The stages in their order; a stage may import the ones before it.
-STAGES = ("scene", "accel", "lights", "trees", "render", "report")
+#: The stages in their order; a stage may import the ones before it. ``cluster`` is the clustering
+#: engine (kd-tree, Fig. 3/4) that the BVH builders of accel and the light-tree builders share.
+STAGES = ("cluster", "scene", "accel", "lights", "trees", "render", "report", "mitsuba")
 ABOVE = ("commands", "cli", "__main__")
 
 
@@ -73,7 +74,8 @@ def test_config_loads_no_stage():
 
 
 @pytest.mark.parametrize("module", ["lightcuts.render.integrator", "lightcuts.report.images",
-                                    "lightcuts.trees.build", "lightcuts.lights.generate", "lightcuts.accel.embree"])
+                                    "lightcuts.trees.build", "lightcuts.lights.generate", "lightcuts.accel.embree",
+                                    "lightcuts.cluster.agglomerate"])
 def test_stages_load_no_command(module):
     loaded = _loaded_after_import(module)
     assert module in loaded and not [m for m in loaded if m.startswith(("lightcuts.commands", "lightcuts.cli"))]

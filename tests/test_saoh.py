@@ -10,7 +10,7 @@ from lightcuts.limits import MAX_COORD, MAX_INTENSITY
 from lightcuts.lights import LightSet
 from lightcuts.trees import build_tree, get_builder, validate_tree
 from lightcuts.trees import saoh as saoh_module
-from lightcuts.trees.cones import cones_from_boxes
+from lightcuts.cluster.cones import cones_from_boxes
 from lightcuts.trees.saoh import BUCKETS, m_omega, split_costs
 
 from conftest import random_lights, unit

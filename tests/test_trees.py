@@ -17,11 +17,11 @@ from numba import njit
 
 import lightcuts
 from lightcuts.cli import main as cli_main
+from lightcuts.cluster.cones import cone_contains, cone_from_box, cone_sine, cones_from_boxes
 from lightcuts.errors import LightcutsError
 from lightcuts.lights import LightSet
 from lightcuts.trees import (BUILDERS, METRICS, LightTree, build_tree, default_c, get_builder, get_metric,
                              metric_eval, register_metric, validate_tree)
-from lightcuts.trees.cones import cone_contains, cone_from_box, cone_sine, cones_from_boxes
 from lightcuts.trees.metrics import metric_values
 
 from conftest import random_lights, unit

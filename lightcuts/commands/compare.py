@@ -33,8 +33,11 @@ from lightcuts.errors import LightcutsError
 #: The default rows: the paper's four builders and today's top-down SAOH.
 DEFAULT_BUILDERS = ("agglomerative-heap", "agglomerative", "divisive-6d", "divisive-3d", "saoh")
 DEFAULT_PIXELS = 1024
+#: Samples per pixel of the long Mitsuba path-traced render both equal-time images are measured against.
+DEFAULT_MITSUBA_SPP = 1024
 #: What a compare folder may hold (shell patterns): its own outputs and its row store.
-ALLOWED = ("table.md", "table.csv", "report.json", "cutsizes.png", "cutsize-*.png", "rows")
+ALLOWED = ("table.md", "table.csv", "report.json", "cutsizes.png", "cutsize-*.png", "rows", "mitsuba-*.exr",
+           "mitsuba-*.png")
 #: Lights per type on which each builder's kernels are loaded (or compiled) before the timed build.
 _WARM_LIGHTS = 64
 
@@ -50,6 +53,11 @@ def add_parser(sub) -> None:
                    help=f"pixels in the seeded sample the error is measured on (default {DEFAULT_PIXELS}; 0: none)")
     p.add_argument("--diff", default=None, help="a,b: the rows of the signed cut-size difference (default the first two)")
     p.add_argument("--force", action="store_true", help="recompute rows already finished")
+    p.add_argument("--mitsuba", action="store_true",
+                   help="add Mitsuba 3's path tracer run for the agglomerative row's image time, both against "
+                        "a long Mitsuba render (needs pip install 'lightcuts[mitsuba]')")
+    p.add_argument("--mitsuba-spp", type=int, default=DEFAULT_MITSUBA_SPP,
+                   help=f"samples per pixel of the long Mitsuba render (default {DEFAULT_MITSUBA_SPP})")
     p.add_argument("--out", default=None, help="output folder (default renders/<name>/compare)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     add_set(p)
@@ -138,6 +146,12 @@ def run_compare(args) -> dict:
     cfg = load_config(args.config, args.overrides)
     if args.pixels < 0:
         raise LightcutsError(f"--pixels {args.pixels}: must be >= 0")
+    if args.mitsuba:
+        from lightcuts.mitsuba import load_mitsuba
+
+        if args.mitsuba_spp < 1:
+            raise LightcutsError(f"--mitsuba-spp {args.mitsuba_spp}: must be at least 1")
+        load_mitsuba()  # one line naming the install command if Mitsuba is missing
     rows = resolve_rows(args, cfg)
     plans = [plan_run(cfg, render=True, tree=spec) for _, spec in rows]
     labels = [label for label, _ in rows]
@@ -194,10 +208,11 @@ def _run(args, cfg, plans, labels, out: Path, pixels, diff) -> dict:
             reference = _reference(args, cfg, shared, store, pixels)
         results = [_row(args, cfg, plan, label, shared, store, pixels, reference)
                    for plan, label in zip(plans, labels)]
+        mitsuba = _mitsuba(args, cfg, shared, store, results) if args.mitsuba else None
     finally:
         if shared.warmup is not None:
             finish_warmup(shared.warmup, timeout=0)
-    return _write(args, cfg, out, results, reference, pixels, diff)
+    return _write(args, cfg, out, results, reference, pixels, diff, mitsuba)
 
 
 def _reference(args, cfg, shared, store: Path, pixels) -> dict:
@@ -238,13 +253,13 @@ def _row(args, cfg, plan, label, shared, store: Path, pixels, reference) -> dict
     from lightcuts.trees.build import build_tree
 
     spec = plan.tree
-    key = _key(what="row", config=_shared_config(cfg), builder=spec.name,
+    key = _key(what="row", store=2, config=_shared_config(cfg), builder=spec.name,
                metric=spec.metric.name if spec.metric is not None else None, c=spec.c,
                pixels=None if pixels is None else pixels.tolist(), version=__version__)
     path = store / f"{file_label(label)}.npz"
     cached = None if args.force else _load_cached(path, key)
     if cached is not None:
-        return {"row": json.loads(str(cached["row"])), "cut": cached["cut"]}
+        return {"row": json.loads(str(cached["row"])), "cut": cached["cut"], "image": cached["image"]}
 
     s = shared.get()
     for typ, ls in s.lights.items():  # load (or compile) the builder's kernels untimed
@@ -284,13 +299,44 @@ def _row(args, cfg, plan, label, shared, store: Path, pixels, reference) -> dict
         row.update(err_median=err["median"], err_p99=err["p99"], err_mean=err["mean"], err_max=err["max"],
                    pixels_compared=err["pixels"])
     store.mkdir(parents=True, exist_ok=True)
-    save_npz(path, key=np.array(key), row=np.array(json.dumps(row)), cut=result.cut_size)
-    return {"row": row, "cut": result.cut_size}
+    save_npz(path, key=np.array(key), row=np.array(json.dumps(row)), cut=result.cut_size, image=result.image)
+    return {"row": row, "cut": result.cut_size, "image": result.image}
 
 
-def _write(args, cfg, out: Path, results: list[dict], reference, pixels, diff) -> dict:
+def _mitsuba(args, cfg, shared, store: Path, results: list[dict]) -> dict:
+    """Lightcuts against Mitsuba's path tracer at equal time: the agglomerative row's image (the
+    first row's without one) and a Mitsuba render with the spp that fills that row's image time,
+    each against a ``--mitsuba-spp`` Mitsuba render (energy ratio, per-pixel and 8x8-block error)."""
+    from lightcuts.io import save_npz
+    from lightcuts.mitsuba.render import mitsuba_version, render_mitsuba, spp_for_seconds
+    from lightcuts.report.images import compare_images
+
+    base = next((r for r in results if r["row"]["label"] == "agglomerative"), results[0])
+    key = _key(what="mitsuba", config=_shared_config(cfg), spp=args.mitsuba_spp, version=mitsuba_version())
+    path = store / "mitsuba-reference.npz"
+    cached = None if args.force else _load_cached(path, key)
+    s = shared.get()
+    if cached is None:
+        print(f"{cfg.name}: Mitsuba path tracer, {args.mitsuba_spp} spp (the long reference)", flush=True)
+        long_image, long_s = render_mitsuba(cfg, s.scene, s.envmap, spp=args.mitsuba_spp, integrator="path",
+                                            seed=cfg.seed + 1)
+        save_npz(path, key=np.array(key), image=long_image, seconds=np.array(long_s))
+    else:
+        long_image, long_s = cached["image"], float(cached["seconds"])
+    budget = base["row"]["image_s"]
+    spp = spp_for_seconds(cfg, s.scene, s.envmap, budget, "path")
+    image, seconds = render_mitsuba(cfg, s.scene, s.envmap, spp=spp, integrator="path", seed=cfg.seed)
+    return {"version": mitsuba_version(), "reference_spp": args.mitsuba_spp, "reference_seconds": long_s,
+            "lightcuts_row": base["row"]["label"], "budget_s": budget,
+            "equal_time": {"spp": spp, "seconds": seconds, **compare_images(image, long_image)},
+            "lightcuts": {"seconds": budget, **compare_images(base["image"], long_image)},
+            "images": {"reference": long_image, "equal_time": image}}
+
+
+def _write(args, cfg, out: Path, results: list[dict], reference, pixels, diff, mitsuba=None) -> dict:
     from lightcuts.io import output_set, save_json
-    from lightcuts.report.compare import format_markdown, machine, write_cut_images, write_tables
+    from lightcuts.report.compare import format_markdown, format_mitsuba, machine, write_cut_images, write_tables
+    from lightcuts.report.images import write_exr, write_png
 
     rows = [dict(r["row"]) for r in results]
     base = next((r["cut_mean"] for r in rows if r["label"] == "divisive-6d"), None)
@@ -303,11 +349,20 @@ def _write(args, cfg, out: Path, results: list[dict], reference, pixels, diff) -
               "pixels": None if pixels is None else len(pixels), "diff": list(diff) if diff else None}
     if reference is not None:
         report["reference"] = {"seconds": reference["seconds"], "shadow_rays": reference["shadow_rays"]}
+    extra = ""
+    if mitsuba is not None:
+        images = mitsuba.pop("images")
+        report["mitsuba"] = mitsuba
+        extra = format_mitsuba(mitsuba)
     with output_set(out, keep=("rows",)) as tmp:
-        write_tables(tmp, rows, title)
+        write_tables(tmp, rows, title, extra)
         report["cut_scale_max"] = write_cut_images(tmp, {r["label"]: x["cut"] for r, x in zip(rows, results)},
                                                    diff, title)
+        if mitsuba is not None:
+            for name, image in images.items():
+                write_exr(tmp / f"mitsuba-{name}.exr", image)
+                write_png(tmp / f"mitsuba-{name}.png", image, cfg.render.exposure)
         save_json(tmp / "report.json", report)
-    print(format_markdown(rows, title), end="")
+    print(format_markdown(rows, title) + extra, end="")
     print(f"-> {out}")
     return report

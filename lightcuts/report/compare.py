@@ -55,10 +55,28 @@ def format_markdown(rows: list[dict], title: str) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_tables(folder: Path, rows: list[dict], title: str) -> None:
-    """``table.md`` and ``table.csv`` in ``folder``, each written atomically."""
+def format_mitsuba(m: dict) -> str:
+    """The equal-time comparison with Mitsuba's path tracer as a Markdown section."""
+    lines = ["", f"## Lightcuts and path tracing at equal time (Mitsuba {m['version']['version']}, "
+                 f"{m['version']['variant']})", "",
+             f"Both against Mitsuba's path tracer at {m['reference_spp']} spp ({m['reference_seconds']:.1f} s). "
+             "Relative luminance error per pixel and of 8x8-block means.", "",
+             "| Renderer | Image time (s) | Energy ratio | Pixel median | Pixel p99 | 8x8 median | 8x8 p99 |",
+             "|---|---:|---:|---:|---:|---:|---:|"]
+    for name, r in ((f"lightcuts ({m['lightcuts_row']})", m["lightcuts"]),
+                    (f"Mitsuba path, {m['equal_time']['spp']} spp", m["equal_time"])):
+        seconds = r["seconds"]
+        ratio = "" if r["energy_ratio"] is None else f"{r['energy_ratio']:.4f}"
+        b = r.get("block8", {})
+        lines.append(f"| {name} | {seconds:.2f} | {ratio} | {r['pixel']['median']:.2%} | {r['pixel']['p99']:.2%} | "
+                     f"{b.get('median', float('nan')):.2%} | {b.get('p99', float('nan')):.2%} |")
+    return "\n".join(lines) + "\n"
+
+
+def write_tables(folder: Path, rows: list[dict], title: str, extra: str = "") -> None:
+    """``table.md`` (the table, then ``extra``) and ``table.csv`` in ``folder``, each written atomically."""
     with atomic_path(folder / "table.md") as tmp:
-        tmp.write_text(format_markdown(rows, title))
+        tmp.write_text(format_markdown(rows, title) + extra)
     save_csv(folder / "table.csv", [{k: r.get(k) for k in CSV_FIELDS} for r in rows], list(CSV_FIELDS))
 
 

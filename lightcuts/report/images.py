@@ -118,3 +118,30 @@ def relative_error(image: np.ndarray, reference: np.ndarray, floor: float | None
     rel = np.abs(lum[mask] - ref[mask]) / ref[mask]
     return {"pixels": int(mask.sum()), "floor": float(floor), "mean": float(rel.mean()),
             "median": float(np.median(rel)), "p99": float(np.percentile(rel, 99)), "max": float(rel.max())}
+
+
+def block_means(image: np.ndarray, block: int = 8) -> np.ndarray:
+    """(H // block, W // block, C) means of the image's whole ``block`` x ``block`` tiles (a partial
+    last row or column of tiles is left out)."""
+    a = np.asarray(image, np.float64)
+    h, w = (a.shape[0] // block) * block, (a.shape[1] // block) * block
+    a = a[:h, :w]
+    return a.reshape(h // block, block, w // block, block, *a.shape[2:]).mean(axis=(1, 3))
+
+
+def compare_images(image: np.ndarray, reference: np.ndarray, block: int = 8) -> dict:
+    """An image against a reference of the same shape (H, W, 3): ``energy_ratio`` (mean luminance
+    image / reference; None for a black
+    reference), ``pixel`` (:func:`relative_error` per pixel) and ``block<k>`` (the same on the
+    means of k x k tiles, taken first: a path-traced reference's noise mostly averages out there)."""
+    from lightcuts.lights.lightset import LUMINANCE
+
+    image, reference = np.asarray(image, np.float64), np.asarray(reference, np.float64)
+    if image.shape != reference.shape:
+        raise ValueError(f"images differ in shape: {image.shape} and {reference.shape}")
+    ref_mean = float((reference @ LUMINANCE).mean())
+    out = {"energy_ratio": float((image @ LUMINANCE).mean()) / ref_mean if ref_mean > 0 else None,
+           "pixel": relative_error(image, reference)}
+    if image.shape[0] >= block and image.shape[1] >= block:
+        out[f"block{block}"] = relative_error(block_means(image, block), block_means(reference, block))
+    return out

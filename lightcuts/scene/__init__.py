@@ -1,4 +1,5 @@
-"""Scenes: triangle meshes with per-triangle materials and a pinhole camera."""
+"""Scenes: triangle meshes with per-triangle materials and a pinhole camera; the built-in Cornell
+box (``cornell``) and the procedural kitchen, building of rooms and gallery (``procedural``)."""
 
 from lightcuts.scene.scene import Camera, Scene
 

@@ -3,7 +3,8 @@
 Camera, in order of precedence, field by field (position, look_at, up, fov, resolution):
 
 1. the fields ``cfg.camera`` gives;
-2. the built-in scene's camera (the Cornell box's published one), if ``scene.builtin`` is set;
+2. the built-in scene's camera (the Cornell box's published one), if ``scene.builtin`` is set, or the
+   procedural scene's (``lightcuts.scene.procedural``), if ``scene.procedural`` is;
 3. otherwise a default framing camera (``framing_camera``): up +y, vertical fov ``DEFAULT_FOV``,
    ``DEFAULT_RESOLUTION``, looking along -z at the centre of the scene's bounding box from the +z side,
    at the distance where the box's bounding sphere just fits in both the vertical and the horizontal
@@ -22,6 +23,8 @@ from lightcuts.errors import LightcutsError
 from lightcuts.scene.cornell import RESOLUTION as CORNELL_RESOLUTION
 from lightcuts.scene.cornell import cornell_box
 from lightcuts.scene.loaders import concatenate_scenes, load_mesh
+from lightcuts.scene.procedural import RESOLUTIONS as PROCEDURAL_RESOLUTIONS
+from lightcuts.scene.procedural import procedural_scene
 from lightcuts.scene.scene import Camera, Scene
 
 DEFAULT_FOV = 40.0  # degrees, vertical
@@ -40,6 +43,8 @@ def image_size(cfg: RunConfig) -> tuple[int, int]:
         return tuple(cfg.camera.resolution)
     if cfg.scene.builtin is not None:
         return BUILTIN_RESOLUTIONS[cfg.scene.builtin]
+    if cfg.scene.procedural is not None:
+        return tuple(PROCEDURAL_RESOLUTIONS[cfg.scene.procedural.type])
     return DEFAULT_RESOLUTION
 
 
@@ -84,8 +89,9 @@ def _apply_camera_config(cc: CameraConfig, base: Camera | None, bounds: np.ndarr
 def scene_from_config(cfg: RunConfig) -> Scene:
     """The Scene ``cfg.scene`` describes, with its camera (module docstring) and ``cfg.name``.
 
-    Triangle order: the built-in scene's first, then each of ``cfg.scene.meshes`` in order. Mesh
-    paths are resolved with ``cfg.resolve``; errors name ``scene.meshes.<i>``.
+    Triangle order: the built-in or procedural scene's first, then each of ``cfg.scene.meshes`` in
+    order (a gallery's meshes after its room, placed on its plinths). Mesh paths are resolved with
+    ``cfg.resolve``; errors name ``scene.meshes.<i>``.
     """
     sc = cfg.scene
     parts = []
@@ -93,15 +99,22 @@ def scene_from_config(cfg: RunConfig) -> Scene:
         if sc.builtin not in BUILTINS:
             raise LightcutsError(f"scene.builtin: unknown built-in {sc.builtin!r}; valid: {', '.join(BUILTINS)}")
         parts.append(BUILTINS[sc.builtin](sc.materials))
-    elif sc.materials:
+    elif sc.materials and sc.procedural is None:
         raise LightcutsError(f"scene.materials.{next(iter(sc.materials))}: overrides built-in surfaces, "
-                             "but scene.builtin is not set")
-    for i, m in enumerate(sc.meshes):
-        parts.append(load_mesh(cfg.resolve(m.file), m.scale, m.rotate, m.translate, m.material,
-                               key=f"scene.meshes.{i}"))
+                             "but neither scene.builtin nor scene.procedural is set")
+    meshes = [load_mesh(cfg.resolve(m.file), m.scale, m.rotate, m.translate, m.material, key=f"scene.meshes.{i}")
+              for i, m in enumerate(sc.meshes)]
+    if sc.procedural is not None:
+        if sc.procedural.type == "gallery":
+            parts.append(procedural_scene(sc.procedural, sc.materials, meshes, [m.translate for m in sc.meshes],
+                                          name=cfg.name))
+            meshes = []
+        else:
+            parts.append(procedural_scene(sc.procedural, sc.materials, name=cfg.name))
+    parts += meshes
     if not parts:
-        raise LightcutsError("scene: needs builtin or meshes")
-    builtin_camera = parts[0].camera if sc.builtin is not None else None
+        raise LightcutsError("scene: needs builtin, procedural or meshes")
+    base_camera = parts[0].camera if (sc.builtin is not None or sc.procedural is not None) else None
     scene = concatenate_scenes(parts, name=cfg.name)
-    scene.camera = _apply_camera_config(cfg.camera, builtin_camera, scene.bounds)
+    scene.camera = _apply_camera_config(cfg.camera, base_camera, scene.bounds)
     return scene

@@ -1,43 +1,14 @@
-r"""Fast agglomerative builders (Walter, Bala, Kulkarni, Pingali, "Fast Agglomerative Clustering for
-Rendering", IEEE Symposium on Interactive Ray Tracing 2008): ``agglomerative`` and
-``agglomerative-heap``.
+r"""Fast agglomerative light-tree builders (Walter, Bala, Kulkarni, Pingali 2008): ``agglomerative``
+(locally-ordered clustering, Fig. 4, in rounds on the threads) and ``agglomerative-heap`` (the
+heap-based version, Fig. 3).
 
-Both merge, bottom-up, pairs of clusters that are each other's best match under a metric d(A u B)
-(:mod:`lightcuts.trees.metrics`), finding best matches with the kd-tree of
-:mod:`lightcuts.trees.kd_tree`. With a non-decreasing metric (the paper's eq. 1) both build the
-greedy tree (Fig. 2) up to ties; with box-of-normals cones the metric is not monotone, and the tree
-may differ from the greedy one in a few clusters (docs/math.md, "Non-decreasing metrics";
+Both are the clustering engine of :mod:`lightcuts.cluster.agglomerate` run on the lights: each light a
+cluster whose box is its position (the box of unit directions for directional lights), its box of
+normals its normal, its intensity its luminance, under a built-in metric of
+:mod:`lightcuts.trees.metrics` (the engine's dissimilarities). With a non-decreasing metric both
+build the greedy tree (Fig. 2) up to ties; with box-of-normals cones the metric is not monotone, and
+the tree may differ from the greedy one in a few clusters (docs/math.md, "Non-decreasing metrics";
 ``benchmarks/bench_agglomerative.py`` measures how many).
-
-``agglomerative`` -- locally-ordered clustering (Fig. 4: merge A and B as soon as each is the
-other's best match), run in rounds so that its searches can share the cores::
-
-    search best(A) for every cluster
-    while more than one cluster:
-        for each pair A, B = best(A) with d(A u B) <= d(B u best(B)):   # the tie rule of section 3.2
-            merge(A, B)
-        search best(X) for each new cluster X, and each X whose best match was merged
-
-Why these rounds build Fig. 4's tree: docs/math.md, "Rounds of mutual best matches". A
-round's searches only read the kd-tree and each writes its own cluster's answer, so they run on the
-numba threads, the clusters of one kd leaf together
-(:func:`~lightcuts.trees.kd_search.kd_search_range`); the pairs are chosen on one thread in a fixed
-order, which numbers the nodes; the kd-tree merges them, those within one subtree below its top
-levels on the threads (:func:`~lightcuts.trees.kd_merge.kd_merge_batch`). The tree does not depend
-on the thread count. Each cluster keeps a list of the clusters whose best match it is, so a merge
-finds whom to search again without a scan.
-
-``agglomerative-heap`` -- the heap-based version (Fig. 3), on one thread as in the paper: every
-cluster's best match in a binary min-heap keyed on (d, cluster id); pop the smallest; skip it if its
-cluster was merged away; search again and push it if its partner was; merge otherwise and push the
-new cluster's best match.
-
-Both kernels run on the lights sorted along a Morton curve of their positions
-(:func:`morton_order`), so that clusters near each other in space have nearby ids and the
-per-cluster arrays stay in cache; the leaves are relabelled to light ids at the end. Only the ids
-among tied clusters depend on that order. No call inside a per-cluster or per-pair loop takes the
-KdTree: each would cost an atomic reference-count update per array (docs/performance.md,
-"Reference counting").
 
 Node ids of the returned topology: leaves 0..N-1 are lights 0..N-1, merge m makes node N + m, the
 root is 2N - 2.
@@ -46,289 +17,12 @@ root is 2N - 2.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from lightcuts.cluster.agglomerate import PARALLEL_MIN, agglomerate
+from lightcuts.cluster.kd_tree import LEAF_SIZE
 from lightcuts.errors import LightcutsError
-from lightcuts.parallel import on_counter, on_threads
-from lightcuts.trees.bounds import points_box
-from lightcuts.trees.kd_build import kd_build, kd_build_threaded, kd_new
-from lightcuts.trees.kd_merge import (kd_merge, kd_merge_batch, kd_merge_batch_finish, kd_subtree_starts,
-                                      kd_wants_rebuild)
-from lightcuts.trees.kd_search import kd_best_match, kd_group_by_leaf, kd_search_range
-from lightcuts.trees.kd_tree import KD_SUBTREES, LEAF_SIZE
 from lightcuts.trees.metrics import Metric
 from lightcuts.trees.registry import BUILDERS
-
-
-@njit(cache=True)
-def _heap_push(hd, ha, hb, size, d, a, b):
-    """Add (d, a, b) to the binary min-heap of ``size`` entries keyed on (d, a); returns the new size.
-
-    Keys are unique: a cluster has at most one live entry. Sifts a hole up with scalar compares (an
-    array passed to a helper per compare would cost numba reference-count updates each time).
-    """
-    i = size
-    while i > 0:
-        p = (i - 1) >> 1
-        if hd[p] < d or (hd[p] == d and ha[p] < a):
-            break
-        hd[i] = hd[p]
-        ha[i] = ha[p]
-        hb[i] = hb[p]
-        i = p
-    hd[i] = d
-    ha[i] = a
-    hb[i] = b
-    return size + 1
-
-
-@njit(cache=True)
-def _heap_pop(hd, ha, hb, size):
-    """Remove the smallest entry; returns ``(new size, d, a, b)`` of that entry."""
-    top_d = hd[0]
-    top_a = ha[0]
-    top_b = hb[0]
-    size -= 1
-    d = hd[size]
-    a = ha[size]
-    b = hb[size]
-    i = 0
-    while True:
-        m = 2 * i + 1
-        if m >= size:
-            break
-        if m + 1 < size and (hd[m + 1] < hd[m] or (hd[m + 1] == hd[m] and ha[m + 1] < ha[m])):
-            m += 1
-        if d < hd[m] or (d == hd[m] and a < ha[m]):
-            break
-        hd[i] = hd[m]
-        ha[i] = ha[m]
-        hb[i] = hb[m]
-        i = m
-    hd[i] = d
-    ha[i] = a
-    hb[i] = b
-    return size, top_d, top_a, top_b
-
-
-@njit(cache=True)
-def _leaves_to_lights(left, right, order):
-    """Relabel leaf children (cluster i < N) as light ``order[i]``."""
-    n = order.shape[0]
-    for m in range(n, left.shape[0]):
-        if left[m] < n:
-            left[m] = order[left[m]]
-        if right[m] < n:
-            right[m] = order[right[m]]
-
-
-@njit(cache=True)
-def _leaf_ids(n):
-    """(2N-1,) int32 light per node: leaves 0..N-1 are clusters 0..N-1, -1 elsewhere (relabelled later)."""
-    light = np.full(2 * n - 1, -1, np.int32)
-    # A loop, not a slice assignment: numba's slice-shape error path costs seconds of compilation.
-    for i in range(n):
-        light[i] = i
-    return light
-
-
-# Entries of the locally-ordered builder's counters array.
-C_NEXT, C_SEARCHES, C_ROUNDS = 0, 1, 2
-
-
-def _rounds_start(position, normal, luminance, order, leafsize):
-    """The locally-ordered builder's state, its kd-tree not built yet (the caller builds it, on the
-    threads, and fills ``todo``). Plain Python around :func:`~lightcuts.trees.kd_build.kd_new`, so
-    that kd_new is compiled once (docs/performance.md, "chunks, cold compilation").
-
-    Returns ``(kd, work, todo, todo_next, best, best_d, head, nxt, left, right, pair_sub, counters)``:
-    todo, todo_next : (N,) int64 clusters to search this round, and the next round's; best, best_d :
-        (2N-1,) int32 each cluster's last best match (-1: none yet, -2: to search again, -3: the
-        cluster is gone) and its float64 d; head, nxt : (2N-1,) int32 per cluster, the singly
-        linked list of the clusters whose best match it is (-1 ends it); left, right : (2N-1,)
-        int32 children; pair_sub : (N,) int32 a round's pairs' kd subtrees; counters : see ``C_*``.
-    """
-    n = position.shape[0]
-    k = 2 * n - 1
-    kd, work = kd_new(position, normal, luminance, order, leafsize)
-    todo = np.empty(n, np.int64)
-    counters = np.zeros(3, np.int64)
-    counters[C_NEXT] = n
-    return (kd, work, todo, np.empty(n, np.int64), np.full(k, -1, np.int32), np.full(k, np.inf),
-            np.full(k, -1, np.int32), np.full(k, -1, np.int32), np.full(k, -1, np.int32), np.full(k, -1, np.int32),
-            np.empty(n, np.int32), counters)
-
-
-@njit(cache=True, nogil=True)
-def _pair_round(kd, todo, n_todo, todo_next, best, best_d, head, nxt, left, right, pair_sub, counters):
-    """After the searches of ``todo[:n_todo]``: choose every pair the tie rule allows, numbered
-    ``left[m], right[m] -> m`` from ``counters[C_NEXT]`` on, each with its kd subtree in
-    ``pair_sub`` (the kd-tree merges them next, :func:`_merge_pairs`); returns the next round's
-    count (its clusters written to ``todo``).
-
-    A checked on B = best(A) merges when d(A u B) <= B's own best d. Only pairs with a cluster
-    searched this round are checked: A searched, or B searched and A in B's list. Any other pair was
-    checked with the same values when the later of its two was searched. A merge marks its two
-    clusters gone (best -3) and queues the new cluster, and every cluster whose best match was one
-    of the two (read off their lists).
-    """
-    k = left.shape[0]
-    new = counters[C_NEXT]
-    n_pairs = 0
-    slot_of = kd.slot_of
-    starts = kd_subtree_starts(kd)
-    counters[C_SEARCHES] += n_todo
-    counters[C_ROUNDS] += 1
-    for i in range(n_todo):
-        a = todo[i]
-        b = best[a]
-        if b >= 0:
-            nxt[a] = head[b]
-            head[b] = a
-    count = 0
-    for i in range(n_todo):
-        searched = todo[i]
-        # The searched cluster's own pair first, then the pairs of the clusters listing it. A gone,
-        # queued or unsearched cluster has best < 0 (lists keep gone clusters: skipped here).
-        a = searched
-        z = np.int64(head[searched])
-        while True:
-            b = np.int64(best[a])
-            if b >= 0 and best[b] >= 0 and best_d[a] <= best_d[b]:
-                left[new] = a
-                right[new] = b
-                # The kd subtree of each (kd_subtree_starts), -1 if they differ or there are none.
-                sa = np.int64(slot_of[a])
-                sb = np.int64(slot_of[b])
-                ja = 0
-                jb = 0
-                for t in range(1, KD_SUBTREES):
-                    ja += sa >= starts[t]
-                    jb += sb >= starts[t]
-                pair_sub[n_pairs] = ja if ja == jb and starts[0] >= 0 else -1
-                n_pairs += 1
-                best[a] = -3
-                best[b] = -3
-                todo_next[count] = new
-                count += 1
-                new += 1
-                for gone in (a, b):
-                    y = np.int64(head[gone])
-                    while y >= 0:
-                        if best[y] == gone:
-                            todo_next[count] = y
-                            count += 1
-                            best[y] = -2
-                        y = np.int64(nxt[y])
-                if new == k or best[searched] == -3:
-                    break
-            if z < 0:
-                break
-            a = z
-            z = np.int64(nxt[z])
-        if new == k:
-            break
-    for i in range(count):
-        todo[i] = todo_next[i]
-    counters[C_NEXT] = new
-    return count
-
-
-def _merge_pairs(kd, left, right, new0, n_pairs, pair_sub, parallel_min):
-    """The kd-tree merges of a round's pairs (:func:`_pair_round`): those within one subtree below
-    the kd-tree's top levels on the threads, a subtree per task, then the rest in order. The slots
-    do not depend on the thread count."""
-    if n_pairs >= parallel_min:
-        on_threads(kd_merge_batch, KD_SUBTREES, 0, kd, left, right, new0, n_pairs, pair_sub)
-    else:
-        kd_merge_batch(kd, left, right, new0, n_pairs, pair_sub, 0, KD_SUBTREES)
-    kd_merge_batch_finish(kd, left, right, new0, n_pairs, pair_sub)
-
-
-def _locally_ordered(position, normal, luminance, order, metric_id, has_cone, use_cone, c, leafsize,
-                     parallel_min):
-    """Fig. 4 in rounds: ``(left, right, light, counters)``, leaves as cluster ids (Morton order).
-
-    Rounds of at least ``parallel_min`` searches split them over the numba threads. Each round is
-    two kernel calls from here: a kernel running all rounds would compile the search a second time.
-    """
-    n = position.shape[0]
-    light = _leaf_ids(n)
-    if n == 1:
-        return np.full(1, -1, np.int32), np.full(1, -1, np.int32), light, np.zeros(3, np.int64)
-    kd, work, todo, todo_next, best, best_d, head, nxt, left, right, pair_sub, counters = _rounds_start(
-        position, normal, luminance, order, leafsize)
-    kd_build_threaded(kd, work)
-    # The first round searches the clusters in slot (kd-leaf) order, for locality.
-    todo[:] = kd.slot_id
-    n_todo = n
-    while counters[C_NEXT] < left.shape[0]:
-        on_counter(kd_search_range, n_todo, parallel_min, kd, todo, n_todo, best, best_d, metric_id, has_cone,
-                   use_cone, c, SEARCH_CHUNK)
-        new0 = int(counters[C_NEXT])
-        n_todo = _pair_round(kd, todo, n_todo, todo_next, best, best_d, head, nxt, left, right, pair_sub, counters)
-        if int(counters[C_NEXT]) == new0:
-            raise LightcutsError("builder 'agglomerative': a round merged no pair (a cost is infinite or NaN); "
-                                 "check the lights' and tree.c's magnitudes")
-        _merge_pairs(kd, left, right, new0, int(counters[C_NEXT]) - new0, pair_sub, parallel_min)
-        # Between rounds, so that the rebuild runs on the threads too.
-        if kd_wants_rebuild(kd):
-            kd_build_threaded(kd, work)
-        kd_group_by_leaf(kd, todo, n_todo, todo_next)
-    return left, right, light, counters
-
-
-@njit(cache=True, nogil=True)
-def _agglomerate_heap(position, normal, luminance, order, metric_id, has_cone, use_cone, c, leafsize):
-    """Fig. 3: ``(left, right, light, stats)``, leaves as cluster ids (Morton order); ``stats`` =
-    [kd-tree searches, stale heap entries skipped]. Stops early, with ``left[2N-2] = -1``, if a
-    search finds no partner (an infinite or NaN cost), which would otherwise repeat forever."""
-    n = position.shape[0]
-    k = 2 * n - 1
-    left = np.full(k, -1, np.int32)
-    right = np.full(k, -1, np.int32)
-    light = _leaf_ids(n)
-    stats = np.zeros(2, np.int64)
-    if n == 1:
-        return left, right, light, stats
-    kd, work = kd_new(position, normal, luminance, order, leafsize)
-    kd_build(kd, work)
-    slot_of = kd.slot_of
-    new = np.int64(n)
-    # Live entries never exceed the active clusters: each pop pushes at most one entry.
-    hd = np.empty(n)
-    ha = np.empty(n, np.int64)
-    hb = np.empty(n, np.int64)
-    size = np.int64(0)
-    # In slot order (kd-leaf order) for memory locality; the tree does not change in this loop, so
-    # the order does not change the result.
-    slot_id = kd.slot_id
-    for s in range(n):
-        i = np.int64(slot_id[s])
-        b, d = kd_best_match(kd, i, metric_id, has_cone, use_cone, c)
-        size = _heap_push(hd, ha, hb, size, d, i, b)
-    stats[0] += n
-    while new < k:
-        size, d, a, b = _heap_pop(hd, ha, hb, size)
-        if slot_of[a] < 0:
-            stats[1] += 1
-            continue
-        if b < 0:
-            break
-        if slot_of[b] < 0:
-            b, d = kd_best_match(kd, a, metric_id, has_cone, use_cone, c)
-            stats[0] += 1
-            size = _heap_push(hd, ha, hb, size, d, a, b)
-            continue
-        left[new] = a
-        right[new] = b
-        kd_merge(kd, work, a, b, new, True)
-        if new < k - 1:
-            b, d = kd_best_match(kd, new, metric_id, has_cone, use_cone, c)
-            stats[0] += 1
-            size = _heap_push(hd, ha, hb, size, d, new, b)
-        new += 1
-    return left, right, light, stats
 
 
 def _arguments(position, normal, luminance, light_type: str, metric: Metric, c: float, name: str):
@@ -346,67 +40,6 @@ def _arguments(position, normal, luminance, light_type: str, metric: Metric, c: 
     return position, normal, luminance, int(metric.id), has_cone, bool(has_cone and metric.uses_cone), float(c)
 
 
-@njit(cache=True)
-def _spread3(v):
-    """Spread the low 21 bits of v (uint64) to every third bit (Morton code interleave)."""
-    v &= np.uint64(0x1FFFFF)
-    v = (v | (v << np.uint64(32))) & np.uint64(0x1F00000000FFFF)
-    v = (v | (v << np.uint64(16))) & np.uint64(0x1F0000FF0000FF)
-    v = (v | (v << np.uint64(8))) & np.uint64(0x100F00F00F00F00F)
-    v = (v | (v << np.uint64(4))) & np.uint64(0x10C30C30C30C30C3)
-    return (v | (v << np.uint64(2))) & np.uint64(0x1249249249249249)
-
-
-@njit(cache=True)
-def _morton_keys(position, bits, index_bits):
-    """(N,) uint64 keys: the Morton code of each position quantised to ``bits`` bits per axis over the
-    bounding box, shifted left by ``index_bits``, or-ed with the light's index (unique keys)."""
-    n = position.shape[0]
-    box_lo, box_hi = points_box(position, 0, n)
-    lo = np.empty(3)
-    scale = np.empty(3)
-    top = np.float64((1 << bits) - 1)
-    for t in range(3):
-        lo[t] = box_lo[t]
-        scale[t] = top / (box_hi[t] - box_lo[t]) if box_hi[t] > box_lo[t] else 0.0
-    keys = np.empty(n, np.uint64)
-    for i in range(n):
-        code = np.uint64(0)
-        for t in range(3):
-            x = (position[i, t] - lo[t]) * scale[t]
-            # Non-finite coordinates (refused before any tree is built) must not make the cast undefined.
-            if not x >= 0.0:
-                x = 0.0
-            code |= _spread3(np.uint64(min(x, top))) << np.uint64(2 - t)
-        keys[i] = (code << np.uint64(index_bits)) | np.uint64(i)
-    return keys
-
-
-def morton_order(position: np.ndarray) -> np.ndarray:
-    """(N,) int64 permutation sorting the lights along a Z-order (Morton) curve of their positions.
-
-    position : (N, 3) float64, quantised over its bounding box to as many bits per axis (at most 21) as
-    fit in 64-bit keys beside the light index, which breaks ties (the order of the sort is unique, so
-    any sort algorithm gives it). Lights that arrive in path order are scattered in space; in this
-    order, clusters near each other in space have nearby ids, so the per-cluster arrays the builders
-    index stay in cache.
-    """
-    n = len(position)
-    index_bits = max(1, (n - 1).bit_length())
-    bits = min(21, (64 - index_bits) // 3)
-    keys = _morton_keys(np.ascontiguousarray(position, np.float64), bits, index_bits)
-    keys.sort()
-    return (keys & np.uint64((1 << index_bits) - 1)).astype(np.int64)
-
-
-# Clusters of a round's todo list a search thread takes at a time from a shared counter
-# (kd_search_range), so that a thread on a slower core does not hold up the round.
-SEARCH_CHUNK = 512
-# Rounds with fewer searches than this run on one thread (a round's thread start-up costs about as
-# much as a few dozen searches; the last rounds are small and many).
-PARALLEL_MIN = 2048
-
-
 def agglomerative_stats(position, normal, luminance, light_type: str, metric: Metric, c: float, seed: int,
                         heap: bool = False, leafsize: int = LEAF_SIZE, parallel_min: int = PARALLEL_MIN):
     """Either builder with its work counters: ``(left, right, light, root, stats)``.
@@ -420,22 +53,12 @@ def agglomerative_stats(position, normal, luminance, light_type: str, metric: Me
     """
     if int(leafsize) < 1:
         raise ValueError(f"leafsize must be >= 1, got {leafsize}")
-    args = _arguments(position, normal, luminance, light_type, metric, c, "agglomerative-heap" if heap else
-                      "agglomerative")
-    n = len(args[0])
-    # Build over the lights in Morton order (cluster i = light order[i]); leaves come back as lights.
-    order = morton_order(args[0])
-    if heap:
-        left, right, light, st = _agglomerate_heap(*args[:3], order, *args[3:], int(leafsize))
-        if n > 1 and left[-1] < 0:
-            raise LightcutsError("builder 'agglomerative-heap': a cluster found no partner (a cost is infinite or "
-                                 "NaN); check the lights' and tree.c's magnitudes")
-        stats = {"searches": int(st[0]), "stale": int(st[1])}
-    else:
-        left, right, light, st = _locally_ordered(*args[:3], order, *args[3:], int(leafsize), int(parallel_min))
-        stats = {"searches": int(st[C_SEARCHES]), "rounds": int(st[C_ROUNDS])}
-    _leaves_to_lights(left, right, order)
-    return left, right, light, 2 * n - 2, stats
+    name = "agglomerative-heap" if heap else "agglomerative"
+    position, normal, luminance, metric_id, has_cone, use_cone, c = _arguments(
+        position, normal, luminance, light_type, metric, c, name)
+    return agglomerate(position, position, normal, luminance, metric_id, has_cone, use_cone, c, heap=heap,
+                       leafsize=leafsize, parallel_min=parallel_min,
+                       what=(f"builder {name!r}", "check the lights' and tree.c's magnitudes"))
 
 
 @BUILDERS.register("agglomerative", reads=("metric", "c"), builtin_metrics_only=True)

@@ -24,13 +24,13 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from lightcuts.cluster.bounds import box_union, points_box, row3, set_row3
+from lightcuts.cluster.cones import cone_from_box
 from lightcuts.errors import LightcutsError
 from lightcuts.hashing import mix64 as _mix64
-from lightcuts.limits import MAX_COORD, MAX_INTENSITY
 from lightcuts.lights.lightset import LUMINANCE, LightSet
+from lightcuts.limits import MAX_COORD, MAX_INTENSITY
 from lightcuts.parallel import balance, on_threads, run_all, threads_for
-from lightcuts.trees.bounds import box_union, points_box, row3, set_row3
-from lightcuts.trees.cones import cone_from_box
 from lightcuts.trees.metrics import Metric
 from lightcuts.trees.spec import TreeSpec, tree_spec
 from lightcuts.trees.tree import LightTree

@@ -22,8 +22,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from lightcuts.cluster.bounds import EMPTY_HI, EMPTY_LO, box_grow
 from lightcuts.parallel import balance, run_all, threads_for
-from lightcuts.trees.bounds import EMPTY_HI, EMPTY_LO, box_grow
 from lightcuts.trees.registry import BUILDERS
 
 # Below this many lights the build runs on one thread (thread start-up would cost more).

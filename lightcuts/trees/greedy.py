@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, types
 
-from lightcuts.trees.bounds import box_union, row3, set_row3, union_cone
+from lightcuts.cluster.bounds import box_union, row3, set_row3, union_cone
 from lightcuts.trees.registry import BUILDERS
 
 #: The largest light set ``greedy`` accepts: it is O(N^2) (seconds at this size, hours at 10^5).

@@ -1,6 +1,7 @@
 r"""Clustering metrics: the cost of merging two clusters into C = A u B (smaller merges first).
 
-Built-in metrics (registered in ``lightcuts.trees.registry.METRICS``), with I = C's scalar intensity
+Built-in metrics (registered in ``lightcuts.trees.registry.METRICS``; their kernels are the clustering
+engine's built-in dissimilarities, :mod:`lightcuts.cluster.dissimilarity`), with I = C's scalar intensity
 (luminance of its summed RGB), L = the diagonal of C's spatial box, beta = C's cone half-angle and
 c = the cone-term scale (scene diagonal / 16 by default):
 
@@ -41,73 +42,14 @@ from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
-from numba import njit
 from numba.core.dispatcher import Dispatcher
 
+from lightcuts.cluster.dissimilarity import (SURFACE_AREA, WALTER2005, WALTER2008, metric_eval,  # noqa: F401
+                                             surface_area, walter2005, walter2008)
 from lightcuts.errors import LightcutsError
-from lightcuts.trees.cones import cone_sine
 from lightcuts.trees.registry import METRICS
 
-WALTER2008 = 0
-WALTER2005 = 1
-SURFACE_AREA = 2
 USER_METRIC_ID = -1
-
-
-@njit(cache=True)
-def walter2008(intensity, lo0, lo1, lo2, hi0, hi1, hi2, cone_cos, has_cone, c):
-    """I (L^2 + c^2 S^2)^2, S = sin(beta) (1 past 90 degrees); no cone term without a cone."""
-    dx = hi0 - lo0
-    dy = hi1 - lo1
-    dz = hi2 - lo2
-    t = dx * dx + dy * dy + dz * dz
-    if has_cone:
-        s = cone_sine(cone_cos)
-        t += c * c * s * s
-    return intensity * t * t
-
-
-@njit(cache=True)
-def walter2005(intensity, lo0, lo1, lo2, hi0, hi1, hi2, cone_cos, has_cone, c):
-    """I (L^2 + c^2 (1 - cos beta)^2); no cone term without a cone."""
-    dx = hi0 - lo0
-    dy = hi1 - lo1
-    dz = hi2 - lo2
-    t = dx * dx + dy * dy + dz * dz
-    if has_cone:
-        w = 1.0 - cone_cos
-        t += c * c * w * w
-    return intensity * t
-
-
-@njit(cache=True)
-def surface_area(intensity, lo0, lo1, lo2, hi0, hi1, hi2, cone_cos, has_cone, c):
-    """Surface area of the box (intensity and cone unused)."""
-    dx = hi0 - lo0
-    dy = hi1 - lo1
-    dz = hi2 - lo2
-    return 2.0 * (dx * dy + dy * dz + dz * dx)
-
-
-@njit(cache=True)
-def metric_eval(metric_id, intensity, lo0, lo1, lo2, hi0, hi1, hi2, cone_cos, has_cone, c):
-    """Cost d(C) of the cluster C = A u B, for a built-in metric.
-
-    metric_id : int, WALTER2008 (0), WALTER2005 (1) or SURFACE_AREA (2)
-    intensity : C's scalar intensity (luminance of the summed RGB), >= 0
-    lo0..hi2 : C's spatial box (world units; directional lights: box over unit directions)
-    cone_cos : cosine of C's cone half-angle (-1 for the full sphere)
-    has_cone : False for omni and directional lights (no cone term)
-    c : cone-term scale, world units
-    """
-    if metric_id == WALTER2008:
-        return walter2008(intensity, lo0, lo1, lo2, hi0, hi1, hi2, cone_cos, has_cone, c)
-    if metric_id == WALTER2005:
-        return walter2005(intensity, lo0, lo1, lo2, hi0, hi1, hi2, cone_cos, has_cone, c)
-    if metric_id == SURFACE_AREA:
-        return surface_area(intensity, lo0, lo1, lo2, hi0, hi1, hi2, cone_cos, has_cone, c)
-    raise ValueError("metric_eval: not a built-in metric id")
-
 
 _BUILTIN_FN = {WALTER2008: walter2008, WALTER2005: walter2005, SURFACE_AREA: surface_area}
 

@@ -17,7 +17,7 @@ with phi the side's summed luminance, SA the surface area of the box of its posi
 
 Oriented lights emit over a hemisphere around the normal, theta_e = pi/2, and theta_o is the
 half-angle of the side's normal cone taken from the box of its unit normals
-(:func:`~lightcuts.trees.cones.cone_from_box`), the cone ``build_tree`` gives the node, so the
+(:func:`~lightcuts.cluster.cones.cone_from_box`), the cone ``build_tree`` gives the node, so the
 heuristic judges the bound the render will use (M_Omega in its reduced form, :func:`m_omega`).
 Omni lights have theta_o = pi, so M_Omega = 4 pi for every side. Directional lights are
 clustered by direction (their ``position`` is the unit direction, as for every builder) and have
@@ -44,8 +44,8 @@ import numpy as np
 from numba import njit
 
 from lightcuts.parallel import balance, run_all, threads_for
-from lightcuts.trees.bounds import EMPTY_HI, EMPTY_LO, box_grow, points_box, row3
-from lightcuts.trees.cones import cone_from_box
+from lightcuts.cluster.bounds import EMPTY_HI, EMPTY_LO, box_grow, points_box, row3
+from lightcuts.cluster.cones import cone_from_box
 from lightcuts.trees.registry import BUILDERS
 
 #: Slices per axis; BUCKETS - 1 candidate boundaries per axis.

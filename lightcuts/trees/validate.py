@@ -20,8 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from lightcuts.cluster.cones import cone_contains
 from lightcuts.lights.lightset import LightSet
-from lightcuts.trees.cones import cone_contains
 from lightcuts.trees.tree import LightTree
 
 

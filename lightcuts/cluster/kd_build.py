@@ -1,4 +1,4 @@
-r"""Building the kd-tree (:mod:`lightcuts.trees.kd_tree`) over the active clusters, and rebuilding it.
+r"""Building the kd-tree (:mod:`lightcuts.cluster.kd_tree`) over the active clusters, and rebuilding it.
 
 A (re)build compacts the active slots, splits the top ``TOP_LEVELS`` levels on one thread, then
 handles the 2^TOP_LEVELS subtrees below them independently (their splits, their rows gathered into
@@ -14,12 +14,12 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from lightcuts.cluster.bounds import points_box, set_row3
+from lightcuts.cluster.kd_tree import (I_ACTIVE, I_BUILT, I_FIRST_LEAF, I_LEAFSIZE, N_AXIS, N_EMIN, N_HMIN, N_IMIN,
+                                       N_LMAX, N_SPLIT, NE_MIN, NH_MIN, NL_MAX, NODE_WIDTH, NORMAL_WIDTH, S_HI, S_I,
+                                       S_LO, S_NHI, S_NLO, SLOT_DATA, SLOT_WIDTH, TOP_LEVELS, KdTree, KdWork)
 from lightcuts.parallel import on_threads
 from lightcuts.rounding import down32, up32
-from lightcuts.trees.bounds import points_box, set_row3
-from lightcuts.trees.kd_tree import (I_ACTIVE, I_BUILT, I_FIRST_LEAF, I_LEAFSIZE, N_AXIS, N_EMIN, N_HMIN, N_IMIN,
-                                     N_LMAX, N_SPLIT, NE_MIN, NH_MIN, NL_MAX, NODE_WIDTH, NORMAL_WIDTH, S_HI, S_I,
-                                     S_LO, S_NHI, S_NLO, SLOT_DATA, SLOT_WIDTH, TOP_LEVELS, KdTree, KdWork)
 
 # Traversal stack entries of a search: at most two per level, and the tree has at most ~40 levels.
 _STACK = 128
@@ -316,28 +316,29 @@ def kd_build_threaded(kd, work, parallel_min: int = _PARALLEL_BUILD_MIN) -> None
 
 
 @njit(cache=True)
-def kd_new(position, normal, luminance, order, leafsize):
-    """The kd-tree over N single-light clusters (cluster i = light ``order[i]``), and its build workspace.
+def kd_new(lo, hi, normal, intensity, order, leafsize):
+    """The kd-tree over N single-item clusters (cluster i = item ``order[i]``), and its build workspace.
 
-    position, normal : (N, 3) float64; luminance : (N,) float64; order : (N,) int64 permutation;
-    leafsize : int >= 2
-    Returns ``(kd, work)``, a :class:`~lightcuts.trees.kd_tree.KdTree` (``slot_of`` has room for the
-    2N-1 cluster ids of a full tree) and a :class:`~lightcuts.trees.kd_tree.KdWork`. The tree is not
+    lo, hi : (N, 3) float64 each item's box (a light: its position twice; a triangle: its bounding
+        box); normal : (N, 3) float64 (its box of normals is the point); intensity : (N,) float64;
+        order : (N,) int64 permutation; leafsize : int >= 2
+    Returns ``(kd, work)``, a :class:`~lightcuts.cluster.kd_tree.KdTree` (``slot_of`` has room for the
+    2N-1 cluster ids of a full tree) and a :class:`~lightcuts.cluster.kd_tree.KdWork`. The tree is not
     built yet: build it with :func:`kd_build` or :func:`kd_build_threaded` (kd_build is not called
     here, so that a caller of kd_new alone does not compile it).
     """
-    n = position.shape[0]
+    n = lo.shape[0]
     slot_f = _rows_f64(n, SLOT_WIDTH)
     slot_id = np.empty(n, np.int32)
     slot_of = np.full(max(2 * n - 1, 1), -1, np.int32)
     for i in range(n):
         j = order[i]
         for t in range(3):
-            slot_f[i, S_LO + t] = position[j, t]
-            slot_f[i, S_HI + t] = position[j, t]
+            slot_f[i, S_LO + t] = lo[j, t]
+            slot_f[i, S_HI + t] = hi[j, t]
             slot_f[i, S_NLO + t] = normal[j, t]
             slot_f[i, S_NHI + t] = normal[j, t]
-        slot_f[i, S_I] = luminance[j]
+        slot_f[i, S_I] = intensity[j]
         slot_id[i] = i
     depth = _depth(n, leafsize)
     n_nodes = (2 << depth) - 1

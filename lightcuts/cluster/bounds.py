@@ -2,7 +2,7 @@ r"""Cluster bounds and their unions, as small numba helpers shared by every buil
 
 A light cluster is bounded by the axis-aligned box ``[lo, hi]`` of its lights' positions (world
 units; directional lights: of their unit directions), the box ``[nlo, nhi]`` of their unit normals,
-from which its normal cone follows (:func:`~lightcuts.trees.cones.cone_from_box`), and its summed
+from which its normal cone follows (:func:`~lightcuts.cluster.cones.cone_from_box`), and its summed
 intensity. The union of two clusters is bounded by the union of their boxes and the sum of their
 intensities, which every builder, the kd-tree and the tree fill compute with these helpers.
 
@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from lightcuts.trees.cones import cone_from_box
+from lightcuts.cluster.cones import cone_from_box
 
 # The empty box: min/max accumulators before the first point.
 EMPTY_LO = (np.inf, np.inf, np.inf)
@@ -69,7 +69,7 @@ def box_centre(lo, hi):
 @njit(cache=True, inline="always")
 def union_cone(nlo_a, nhi_a, nlo_b, nhi_b):
     """``(ax, ay, az, cos_half)``: the normal cone of A u B, from the union of the clusters' boxes of
-    unit normals (:func:`~lightcuts.trees.cones.cone_from_box`; not the union of their cones)."""
+    unit normals (:func:`~lightcuts.cluster.cones.cone_from_box`; not the union of their cones)."""
     nlo, nhi = box_union(nlo_a, nhi_a, nlo_b, nhi_b)
     return cone_from_box(nlo[0], nlo[1], nlo[2], nhi[0], nhi[1], nhi[2])
 

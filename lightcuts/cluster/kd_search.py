@@ -1,4 +1,4 @@
-r"""findBestMatch through the kd-tree (:mod:`lightcuts.trees.kd_tree`): branch and bound.
+r"""findBestMatch through the kd-tree (:mod:`lightcuts.cluster.kd_tree`): branch and bound.
 
 A search for cluster A visits A's own leaf first (its neighbours give a tight best d at once), then,
 climbing to the root, each sibling subtree on the way, top-down with the child on A's side of the
@@ -21,14 +21,14 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from lightcuts.cluster.bounds import box_union, col3, row3, union_cone
+from lightcuts.cluster.dissimilarity import metric_eval
+from lightcuts.cluster.kd_build import kd_build, kd_new
+from lightcuts.cluster.kd_merge import kd_merge
+from lightcuts.cluster.kd_tree import (I_FIRST_LEAF, I_LEAFSIZE, LEAF_SIZE, N_AXIS, N_EMIN, N_HMIN, N_IMIN, N_LMAX,
+                                       N_SPLIT, NE_MIN, NH_MIN, NL_MAX, S_HI, S_I, S_LO, S_NHI, S_NLO, SLOT_DATA,
+                                       SLOT_WIDTH, KdTree)
 from lightcuts.parallel import next_task
-from lightcuts.trees.bounds import box_union, col3, row3, union_cone
-from lightcuts.trees.kd_build import kd_build, kd_new
-from lightcuts.trees.kd_merge import kd_merge
-from lightcuts.trees.kd_tree import (I_FIRST_LEAF, I_LEAFSIZE, LEAF_SIZE, N_AXIS, N_EMIN, N_HMIN, N_IMIN, N_LMAX,
-                                     N_SPLIT, NE_MIN, NH_MIN, NL_MAX, S_HI, S_I, S_LO, S_NHI, S_NLO, SLOT_DATA,
-                                     SLOT_WIDTH, KdTree)
-from lightcuts.trees.metrics import metric_eval
 
 # Added to the cone-cosine bound: exceeds cone_from_box's rounding except for boxes whose centre is
 # within ~1e-7 of the origin, whose cones are near the full sphere anyway.
@@ -48,6 +48,38 @@ def _union_extent(qlo, qhi, hmin, lmax, emin):
     """Lower bound of one axis' extent of A u B, A = [qlo, qhi], over B = [lo, hi] with hi >= hmin,
     lo <= lmax, hi - lo >= emin (float32 bounds, widened to float64 exactly)."""
     return max(qhi - qlo, np.float64(emin), max(qhi, np.float64(hmin)) - min(qlo, np.float64(lmax)))
+
+
+@njit(cache=True, inline="always")
+def _node_bound(node_s, node_n, k, qlo, qhi, qnlo, qnhi, qi, metric_id, has_cone, use_cone, c, best_d):
+    """Lower bound of d(A u B) over the clusters B under kd node k, for the query A (box corners qlo,
+    qhi, normal-box corners qnlo, qnhi as 3-tuples, intensity qi): the dissimilarity of the box whose
+    extents are :func:`_union_extent` per axis, at the node's smallest intensity, and, with the cone
+    (``use_cone``) and only if that does not reach ``best_d`` already, the widest cone allowed by the
+    same bound on the boxes of normals. For the surface area this is at least the bound of Walter et
+    al. 2008, section 4 (docs/math.md, "The kd-tree's lower bound")."""
+    u0 = _union_extent(qlo[0], qhi[0], node_s[k, N_HMIN], node_s[k, N_LMAX], node_s[k, N_EMIN])
+    u1 = _union_extent(qlo[1], qhi[1], node_s[k, N_HMIN + 1], node_s[k, N_LMAX + 1], node_s[k, N_EMIN + 1])
+    u2 = _union_extent(qlo[2], qhi[2], node_s[k, N_HMIN + 2], node_s[k, N_LMAX + 2], node_s[k, N_EMIN + 2])
+    intensity = qi + np.float64(node_s[k, N_IMIN])
+    lb = metric_eval(metric_id, intensity, 0.0, 0.0, 0.0, u0, u1, u2, 1.0, has_cone, c)
+    if use_cone and lb < best_d:
+        spread = max(
+            _union_extent(qnlo[0], qnhi[0], node_n[k, NH_MIN], node_n[k, NL_MAX], node_n[k, NE_MIN]),
+            _union_extent(qnlo[1], qnhi[1], node_n[k, NH_MIN + 1], node_n[k, NL_MAX + 1], node_n[k, NE_MIN + 1]),
+            _union_extent(qnlo[2], qnhi[2], node_n[k, NH_MIN + 2], node_n[k, NL_MAX + 2], node_n[k, NE_MIN + 2]))
+        lb = metric_eval(metric_id, intensity, 0.0, 0.0, 0.0, u0, u1, u2, _cone_cos_bound(spread), has_cone, c)
+    return lb
+
+
+@njit(cache=True)
+def kd_node_bound(kd, a, k, metric_id, has_cone, use_cone, c):
+    """The lower bound :func:`kd_best_match` uses for active cluster a against kd node k (with its
+    cone part), as a float64: a diagnostic for the tests' check that it never exceeds d(A u B)."""
+    sa = kd.slot_of[a]
+    return _node_bound(kd.node_s, kd.node_n, k, row3(kd.slot_f, sa, S_LO), row3(kd.slot_f, sa, S_HI),
+                       row3(kd.slot_f, sa, S_NLO), row3(kd.slot_f, sa, S_NHI), kd.slot_f[sa, S_I], metric_id,
+                       has_cone, use_cone, c, np.inf)
 
 
 @njit(cache=True, inline="always")
@@ -72,8 +104,8 @@ def _pair_d(metric_id, has_cone, c, qlo, qhi, qnlo, qnhi, qi, lo, hi, nlo, nhi, 
 def kd_best_match(kd, a, metric_id, has_cone, use_cone, c):
     """findBestMatch(A): the active cluster B != A minimising d(A u B).
 
-    kd : the KdTree (:func:`~lightcuts.trees.kd_build.kd_new`); a : active cluster id;
-        metric_id, has_cone : as for :func:`~lightcuts.trees.metrics.metric_eval`; use_cone :
+    kd : the KdTree (:func:`~lightcuts.cluster.kd_build.kd_new`); a : active cluster id;
+        metric_id, has_cone : as for :func:`~lightcuts.cluster.dissimilarity.metric_eval`; use_cone :
         compute the union's cone (oriented lights and a metric with a cone term); c : cone-term scale.
     Returns ``(b, d)``; ``(-1, inf)`` if A is the only active cluster.
 
@@ -102,8 +134,6 @@ def kd_best_match(kd, a, metric_id, has_cone, use_cone, c):
     qnhi = row3(slot_f, sa, S_NHI)
     qlo0, qlo1, qlo2 = qlo
     qhi0, qhi1, qhi2 = qhi
-    qnlo0, qnlo1, qnlo2 = qnlo
-    qnhi0, qnhi1, qnhi2 = qnhi
     qi = slot_f[sa, S_I]
     qc0 = 0.5 * (qlo0 + qhi0)
     qc1 = 0.5 * (qlo1 + qhi1)
@@ -124,20 +154,8 @@ def kd_best_match(kd, a, metric_id, has_cone, use_cone, c):
             k = stack_node[sp]
             lb = stack_lb[sp]
             if lb < 0.0:
-                u0 = _union_extent(qlo0, qhi0, node_s[k, N_HMIN], node_s[k, N_LMAX], node_s[k, N_EMIN])
-                u1 = _union_extent(qlo1, qhi1, node_s[k, N_HMIN + 1], node_s[k, N_LMAX + 1], node_s[k, N_EMIN + 1])
-                u2 = _union_extent(qlo2, qhi2, node_s[k, N_HMIN + 2], node_s[k, N_LMAX + 2], node_s[k, N_EMIN + 2])
-                intensity = qi + np.float64(node_s[k, N_IMIN])
-                lb = metric_eval(metric_id, intensity, 0.0, 0.0, 0.0, u0, u1, u2, 1.0, has_cone, c)
-                if use_cone and lb < best_d:
-                    spread = max(
-                        _union_extent(qnlo0, qnhi0, node_n[k, NH_MIN], node_n[k, NL_MAX], node_n[k, NE_MIN]),
-                        _union_extent(qnlo1, qnhi1, node_n[k, NH_MIN + 1], node_n[k, NL_MAX + 1],
-                                      node_n[k, NE_MIN + 1]),
-                        _union_extent(qnlo2, qnhi2, node_n[k, NH_MIN + 2], node_n[k, NL_MAX + 2],
-                                      node_n[k, NE_MIN + 2]))
-                    lb = metric_eval(metric_id, intensity, 0.0, 0.0, 0.0, u0, u1, u2, _cone_cos_bound(spread),
-                                     has_cone, c)
+                lb = _node_bound(node_s, node_n, k, qlo, qhi, qnlo, qnhi, qi, metric_id, has_cone, use_cone, c,
+                                 best_d)
             if lb >= best_d:
                 continue
             if k < first_leaf:
@@ -462,7 +480,7 @@ def kd_scratch(kd):
 @njit(cache=True)
 def _best_matches_after(position, normal, luminance, merges, metric_id, has_cone, use_cone, c, leafsize, grouped):
     n = position.shape[0]
-    kd, work = kd_new(position, normal, luminance, np.arange(position.shape[0]), leafsize)
+    kd, work = kd_new(position, position, normal, luminance, np.arange(position.shape[0]), leafsize)
     kd_build(kd, work)
     for m in range(merges.shape[0]):
         kd_merge(kd, work, merges[m, 0], merges[m, 1], n + m, True)

@@ -1,4 +1,4 @@
-r"""Merging clusters in the kd-tree (:mod:`lightcuts.trees.kd_tree`).
+r"""Merging clusters in the kd-tree (:mod:`lightcuts.cluster.kd_tree`).
 
 Merging A and B into C = A u B writes C into the slot of whichever of A, B has its centre nearer
 C's; the other slot is filled by the last active slot of its leaf (leaves stay dense), and the
@@ -20,10 +20,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from lightcuts.trees.bounds import box_centre, box_union, row3, set_row3
-from lightcuts.trees.kd_build import kd_build
-from lightcuts.trees.kd_tree import (I_ACTIVE, I_BUILT, I_FIRST_LEAF, KD_SUBTREES, S_HI, S_I, S_LO, S_NHI, S_NLO,
-                                     SLOT_DATA, TOP_LEVELS)
+from lightcuts.cluster.bounds import box_centre, box_union, row3, set_row3
+from lightcuts.cluster.kd_build import kd_build
+from lightcuts.cluster.kd_tree import (I_ACTIVE, I_BUILT, I_FIRST_LEAF, KD_SUBTREES, S_HI, S_I, S_LO, S_NHI, S_NLO,
+                                       SLOT_DATA, TOP_LEVELS)
 
 # The nodes of the top levels: their counts wait for kd_merge_batch_finish.
 _BATCH_TOP = (1 << TOP_LEVELS) - 1
@@ -91,7 +91,7 @@ def _merge_rows(kd, left, right, first, n_pairs, new0, pair_sub, s, e, top):
 @njit(cache=True)
 def kd_merge(kd, work, a, b, new_id, rebuild):
     """Replace active clusters a and b by their union ``new_id`` (see the module docstring); kd, work :
-    the KdTree and KdWork of :func:`~lightcuts.trees.kd_build.kd_new`.
+    the KdTree and KdWork of :func:`~lightcuts.cluster.kd_build.kd_new`.
 
     rebuild : rebuild the tree here when the active clusters have halved since the last build
     (False: the caller does, see :func:`kd_wants_rebuild`).

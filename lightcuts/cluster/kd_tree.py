@@ -1,11 +1,11 @@
 r"""The kd-tree over the active clusters of the agglomerative builders: its storage and layout.
 
 findBestMatch(A) (Walter, Bala, Kulkarni, Pingali 2008, section 3.1) asks for the active cluster B
-that minimises the metric d(A u B) (:mod:`lightcuts.trees.metrics`). The kd-tree's points are the
+that minimises the metric d(A u B) (:mod:`lightcuts.cluster.dissimilarity`). The kd-tree's points are the
 clusters' box centres, and every node keeps enough to bound d(A u B) from below for every B under
 it, which lets a branch-and-bound search skip most of the tree (the bound: docs/math.md,
-"The kd-tree's lower bound"). Building it: :mod:`lightcuts.trees.kd_build`; searching it:
-:mod:`lightcuts.trees.kd_search`; merging clusters in it: :mod:`lightcuts.trees.kd_merge`.
+"The kd-tree's lower bound"). Building it: :mod:`lightcuts.cluster.kd_build`; searching it:
+:mod:`lightcuts.cluster.kd_search`; merging clusters in it: :mod:`lightcuts.cluster.kd_merge`.
 
 Shape: implicit and balanced, the children of node k are 2k+1 and 2k+2 and all leaves lie at one
 depth; each node splits at the median of its clusters' centres along the longest side of its cell.
@@ -13,7 +13,7 @@ A "slot" holds one active cluster; a leaf owns a contiguous run of slots whose f
 active clusters (dense leaves: a search never meets an empty slot). Node bounds are float32 rounded
 outwards (minima down, maxima up): they stay valid at half the memory traffic, and a search is
 bound by the latency of node and slot rows. Merges keep every bound valid without touching it
-(:mod:`lightcuts.trees.kd_merge`); a rebuild, when the active clusters have halved, makes them tight
+(:mod:`lightcuts.cluster.kd_merge`); a rebuild, when the active clusters have halved, makes them tight
 again.
 
 The tree is a :class:`KdTree` of flat arrays and its (re)build scratch a :class:`KdWork`: named
