@@ -89,6 +89,22 @@ def test_check_rejects_broken_bvhs():
         from_topology(left, right, p, root, v, f)
 
 
+def test_from_topology_takes_nodes_in_any_order():
+    """A builder may number its 2F-1 nodes arbitrarily (the light-tree convention): renumbering a
+    topology's nodes gives the same flat BVH."""
+    v, f = soup(200)
+    left, right, prim, root = build_binned_sah(*triangle_boxes(v, f))
+    ref = from_topology(left, right, prim, root, v, f)
+    perm = np.random.default_rng(4).permutation(len(prim))      # old id -> new id
+    new_left, new_right, new_prim = (np.empty_like(a) for a in (left, right, prim))
+    for arr, new in ((left, new_left), (right, new_right)):
+        new[perm] = np.where(arr >= 0, perm[np.maximum(arr, 0)], -1)
+    new_prim[perm] = prim
+    got = from_topology(new_left, new_right, new_prim, perm[root], v, f)
+    for k in ("lo", "hi", "left", "right", "prim"):
+        assert getattr(got, k).tobytes() == getattr(ref, k).tobytes()
+
+
 def test_save_load_round_trip(tmp_path):
     v, f = soup(120)
     caster = make_caster((v, f), "bvh-sah")

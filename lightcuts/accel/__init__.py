@@ -15,7 +15,7 @@ Kernel-callable casters (``embree``, the BVH casters) are cast from inside numba
 lightcuts.accel.kernel_api (the interface: lightcuts.accel.base).
 """
 
-from lightcuts.accel.base import RayCaster
+from lightcuts.accel.base import KernelCaster, RayCaster
 from lightcuts.accel.registry import RAY_CASTERS, make_caster
 
-__all__ = ["RAY_CASTERS", "RayCaster", "make_caster"]
+__all__ = ["KernelCaster", "RAY_CASTERS", "RayCaster", "make_caster"]
