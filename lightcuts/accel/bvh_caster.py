@@ -80,7 +80,7 @@ class BVHCaster(RayCaster):
         return KernelCaster(self._data, PACKET_WIDTH)
 
     def intersect(self, org, dirs, tnear=0.0, tfar=np.inf):
-        from lightcuts.accel.kernel_api import intersect_rays
+        from lightcuts.accel.bvh_kernels import intersect_rays
 
         org, dirs, tnear, tfar = check_rays(org, dirs, tnear, tfar)
         t = np.empty(len(org), np.float64)
@@ -90,7 +90,7 @@ class BVHCaster(RayCaster):
         return t, prim
 
     def occluded(self, org, dirs, tnear=0.0, tfar=np.inf):
-        from lightcuts.accel.kernel_api import occluded_rays
+        from lightcuts.accel.bvh_kernels import occluded_rays
 
         org, dirs, tnear, tfar = check_rays(org, dirs, tnear, tfar)
         out = np.empty(len(org), np.bool_)

@@ -186,6 +186,38 @@ def bvh_packet_occluded(data, stack, pk, width, n):
             mark_lane_occluded(pk, width, lane)
 
 
+#: Rays per prange iteration of the batch kernels.
+CHUNK = 64
+
+
+# Batch kernels of BVHCaster.intersect / occluded. Here rather than generic over casters: numba keys
+# a kernel's cache on its own module's source, so these recompile when the traversal above changes.
+
+@njit(parallel=True, cache=True, error_model="numpy")
+def intersect_rays(data, org, dirs, tnear, tfar, t_out, prim_out):
+    """Closest hit of each ray: org, dirs (n, 3), tnear, tfar (n,) float64; writes t_out (n,)
+    float64 (inf on a miss) and prim_out (n,) int32 (-1 on a miss)."""
+    n = org.shape[0]
+    for c in prange((n + CHUNK - 1) // CHUNK):
+        stack = bvh_new_scratch(data)
+        for i in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
+            t, p = bvh_intersect(data, stack, org[i, 0], org[i, 1], org[i, 2], dirs[i, 0], dirs[i, 1], dirs[i, 2],
+                                 tnear[i], tfar[i])
+            t_out[i] = t
+            prim_out[i] = p
+
+
+@njit(parallel=True, cache=True, error_model="numpy")
+def occluded_rays(data, org, dirs, tnear, tfar, out):
+    """Any hit of each ray segment: arrays as :func:`intersect_rays`; writes out (n,) bool."""
+    n = org.shape[0]
+    for c in prange((n + CHUNK - 1) // CHUNK):
+        stack = bvh_new_scratch(data)
+        for i in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
+            out[i] = bvh_occluded(data, stack, org[i, 0], org[i, 1], org[i, 2], dirs[i, 0], dirs[i, 1], dirs[i, 2],
+                                  tnear[i], tfar[i])
+
+
 @njit(parallel=True, cache=True, error_model="numpy")
 def brute_force_rays(tri, org, dirs, tnear, tfar, t_out, prim_out):
     """Closest hit of each ray over ALL triangles with :func:`watertight_t` (the test reference);

@@ -30,7 +30,7 @@ import re
 from typing import Any, NamedTuple
 
 import numpy as np
-from numba import njit, prange, types
+from numba import types
 from numba.core.errors import TypingError
 from numba.extending import overload
 
@@ -146,33 +146,3 @@ def _ol_new_scratch(data):
         return fn(data)
 
     return impl
-
-
-#: Rays per prange iteration of the batch kernels.
-CHUNK = 64
-
-
-@njit(parallel=True, cache=True, error_model="numpy")
-def intersect_rays(data, org, dirs, tnear, tfar, t_out, prim_out):
-    """Closest hit of each ray with any kernel caster: org, dirs (n, 3), tnear, tfar (n,) float64;
-    writes t_out (n,) float64 (inf on a miss) and prim_out (n,) int32 (-1 on a miss)."""
-    n = org.shape[0]
-    for c in prange((n + CHUNK - 1) // CHUNK):
-        scratch = new_scratch(data)
-        for i in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
-            t, p = intersect(data, scratch, org[i, 0], org[i, 1], org[i, 2], dirs[i, 0], dirs[i, 1], dirs[i, 2],
-                             tnear[i], tfar[i])
-            t_out[i] = t
-            prim_out[i] = p
-
-
-@njit(parallel=True, cache=True, error_model="numpy")
-def occluded_rays(data, org, dirs, tnear, tfar, out):
-    """Any hit of each ray segment with any kernel caster: arrays as :func:`intersect_rays`;
-    writes out (n,) bool."""
-    n = org.shape[0]
-    for c in prange((n + CHUNK - 1) // CHUNK):
-        scratch = new_scratch(data)
-        for i in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
-            out[i] = occluded(data, scratch, org[i, 0], org[i, 1], org[i, 2], dirs[i, 0], dirs[i, 1], dirs[i, 2],
-                              tnear[i], tfar[i])
