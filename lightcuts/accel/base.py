@@ -1,6 +1,26 @@
-"""The ray-caster interface and the input checks every caster shares."""
+r"""The ray-caster interface and the input checks every caster shares.
+
+A caster answers batches of rays from Python (:meth:`RayCaster.intersect` / :meth:`RayCaster.occluded`).
+A KERNEL-CALLABLE caster (registry trait ``kernel_callable=True``) also lets numba kernels (the
+renderer, the reference, the particle tracer) cast single rays and packets inside their own loops:
+its :attr:`RayCaster.kernel_caster` is a :class:`KernelCaster` ``(data, width)``.
+
+What an outside caster supplies (lightcuts.accel.kernel_api has the signatures):
+
+1. four ``@njit`` device functions, ``intersect``, ``occluded``, ``packet_occluded`` and
+   ``new_scratch``, registered once with
+   ``tag = kernel_api.register_kernel_caster("mypackage.mycaster", intersect, occluded,
+   packet_occluded, new_scratch)``;
+2. ``kernel_caster`` returning ``KernelCaster((tag, *state), width)``: ``state`` is what its device
+   functions read (arrays, numbers, ctypes functions), ``width`` its packet width (1..8);
+3. registration as a caster with ``RAY_CASTERS.register(name, cls, kernel_callable=True)``.
+
+The kernels then compile once per kernel name and load from numba's cache in later processes.
+"""
 
 from __future__ import annotations
+
+from typing import NamedTuple
 
 import numpy as np
 
@@ -8,6 +28,14 @@ from lightcuts.errors import LightcutsError
 
 # Embree works in float32: a coordinate beyond this would become inf inside the BVH traversal.
 _F32_MAX = float(np.finfo(np.float32).max)
+
+
+class KernelCaster(NamedTuple):
+    """What a kernel-callable caster hands to numba kernels (module docstring): ``data``, a tuple
+    starting with the caster's kernel tag, and ``width``, lanes per shadow-ray packet (1..8)."""
+
+    data: tuple
+    width: int
 
 
 class RayCaster:
@@ -19,8 +47,8 @@ class RayCaster:
     Implementations pass their inputs through :func:`check_rays` first.
     """
 
-    #: (intersect1, occluded1, scene_handle) for per-ray calls from numba kernels, or None.
-    kernel_handles = None
+    #: The :class:`KernelCaster` of a kernel-callable caster (valid while the caster is open), else None.
+    kernel_caster = None
 
     def intersect(self, org, dirs, tnear, tfar) -> tuple[np.ndarray, np.ndarray]:
         """Closest hit with t in [tnear, tfar]: (t (n,) float64, inf on a miss; prim (n,) int32, -1 on a miss)."""
@@ -89,3 +117,23 @@ def check_mesh(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
     if faces.size and (faces.min() < 0 or faces.max() >= len(vertices)):
         raise LightcutsError(f"ray caster: faces index vertices outside [0, {len(vertices)})")
     return np.ascontiguousarray(vertices, np.float32), np.ascontiguousarray(faces, np.uint32)
+
+
+def kernel_caster_of(caster, key: str = "render.ray_caster") -> KernelCaster | None:
+    """The caster's :class:`KernelCaster`, checked (data starts with a registered kernel tag, width
+    1..8); None if it has none. LightcutsError naming ``key`` for a malformed one."""
+    from lightcuts.accel.kernel_api import kernel_name
+
+    kc = getattr(caster, "kernel_caster", None)
+    if kc is None:
+        return None
+    name = type(caster).__name__
+    if not isinstance(kc, tuple) or len(kc) != 2:
+        raise LightcutsError(f"{key}: {name}.kernel_caster is not a KernelCaster (data, width)")
+    data, width = kc
+    if kernel_name(data) is None:
+        raise LightcutsError(f"{key}: {name}.kernel_caster: data must be a tuple starting with a tag from "
+                             f"lightcuts.accel.kernel_api.register_kernel_caster")
+    if isinstance(width, bool) or not isinstance(width, (int, np.integer)) or not 1 <= width <= 8:
+        raise LightcutsError(f"{key}: {name}.kernel_caster: width {width!r} must be an integer from 1 to 8")
+    return KernelCaster(data, int(width))

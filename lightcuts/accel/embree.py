@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from lightcuts.accel.base import RayCaster, check_mesh, check_rays
+from lightcuts.accel.base import KernelCaster, RayCaster, check_mesh, check_rays
 from lightcuts.accel.registry import RAY_CASTERS
 from lightcuts.errors import LightcutsError
 
@@ -231,6 +231,16 @@ class EmbreeCaster(RayCaster):
         ``rtcOccluded8`` (width 8) or, where the processor lacks native 8-wide packets,
         ``rtcOccluded4`` (width 4). Valid until :meth:`close`."""
         return self._lib.occluded_n, self._lib.packet_width, self._scene_handle()
+
+    @property
+    def kernel_caster(self) -> KernelCaster:
+        """The :class:`~lightcuts.accel.base.KernelCaster` over Embree: per-ray ``rtcIntersect1`` /
+        ``rtcOccluded1``, packets through ``rtcOccluded8`` (or 4). Valid until :meth:`close`."""
+        from lightcuts.accel.embree_kernels import EMBREE_TAG
+
+        lib = self._lib
+        return KernelCaster((EMBREE_TAG, lib.intersect1, lib.occluded1, lib.occluded_n, self._scene_handle()),
+                            lib.packet_width)
 
     def intersect(self, org, dirs, tnear=0.0, tfar=np.inf):
         from lightcuts.accel.embree_kernels import intersect_rays

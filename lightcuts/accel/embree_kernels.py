@@ -1,8 +1,11 @@
 r"""numba kernels that call Embree 4 (``rtcIntersect1`` / ``rtcOccluded1``) per ray, and
 ``rtcOccluded4`` / ``rtcOccluded8`` per packet of shadow rays.
 
-The per-ray device functions here are what other kernels (the cut evaluator, the particle tracer)
-call inside their own loops over rays; the batch kernels at the bottom are what
+The project's kernels (the cut evaluator, the reference, the particle tracer) reach these through
+lightcuts.accel.kernel_api: the device functions at the bottom are registered there as the kernel
+caster ``lightcuts.embree`` (data ``(EMBREE_TAG, intersect1, occluded1, occluded_n, scene)`` from
+``EmbreeCaster.kernel_caster``). The raw per-ray functions below also serve kernels written against
+Embree alone, with the handles; the batch kernels are what
 :class:`lightcuts.accel.embree.EmbreeCaster` runs for its ``intersect`` / ``occluded``.
 
 Handles
@@ -92,16 +95,16 @@ recompiling (``tests/test_accel.py::test_kernel_in_another_module_is_cached`` ch
 from __future__ import annotations
 
 import numpy as np
-from llvmlite import ir
-from numba import njit, prange, types
-from numba.extending import intrinsic
+from numba import njit, prange
+
+from lightcuts.accel.kernel_api import register_kernel_caster
+from lightcuts.accel.packets import (INVALID_ID, PACKET_FIELDS, PACKET_FLOATS, lane_occluded,  # noqa: F401
+                                     new_ray_packet, packet_set_ray, _address, _load_u32, _store_u32)
 
 #: float32 slots reserved for one RTCRayHit (80 bytes in Embree 4.4; 96 if built with instance arrays).
 RAYHIT_FLOATS = 24
 #: Embree requires RTCRayHit / RTCRay to be 16-byte aligned.
 RAYHIT_ALIGN = 16
-#: geomID / primID meaning "no hit".
-INVALID_ID = 0xFFFFFFFF
 #: Rays per prange iteration of the batch kernels (one scratch buffer each).
 CHUNK = 64
 
@@ -118,59 +121,6 @@ def new_ray_buffer():
     # float32 data is at least 4-byte aligned, so the gap to the boundary is a whole number of floats.
     skip = ((RAYHIT_ALIGN - raw.ctypes.data % RAYHIT_ALIGN) % RAYHIT_ALIGN) // 4
     return raw[skip:skip + RAYHIT_FLOATS]
-
-
-def _check_buffer(buf) -> bool:
-    return isinstance(buf, types.Array) and buf.dtype == types.float32 and buf.layout == "C"
-
-
-# Per-ray accessors as intrinsics: ``buf.view(np.uint32)`` and ``buf.ctypes.data`` inside a device
-# function that is not inlined into its caller cost NRT reference counting on every ray (measured:
-# 130 ns per ray instead of 57 ns on a trivial scene, more than Embree's own entry cost).
-
-@intrinsic
-def _address(typingctx, buf):
-    """Data pointer of a C-contiguous float32 array, as uintp (no reference counting)."""
-    if not _check_buffer(buf):
-        return None
-
-    def codegen(context, builder, sig, args):
-        a = context.make_array(sig.args[0])(context, builder, args[0])
-        return builder.ptrtoint(a.data, context.get_value_type(types.uintp))
-
-    return types.uintp(buf), codegen
-
-
-def _u32_slot(context, builder, sig, args):
-    a = context.make_array(sig.args[0])(context, builder, args[0])
-    slot = context.cast(builder, args[1], sig.args[1], types.intp)
-    return builder.bitcast(builder.gep(a.data, [slot]), ir.IntType(32).as_pointer())
-
-
-@intrinsic
-def _load_u32(typingctx, buf, slot):
-    """The uint32 stored in float32 slot ``slot`` of ``buf`` (an id field of the RTCRayHit)."""
-    if not (_check_buffer(buf) and isinstance(slot, types.Integer)):
-        return None
-
-    def codegen(context, builder, sig, args):
-        return builder.load(_u32_slot(context, builder, sig, args))
-
-    return types.uint32(buf, slot), codegen
-
-
-@intrinsic
-def _store_u32(typingctx, buf, slot, value):
-    """Store ``value`` as uint32 bits into float32 slot ``slot`` of ``buf``."""
-    if not (_check_buffer(buf) and isinstance(slot, types.Integer) and isinstance(value, types.Integer)):
-        return None
-
-    def codegen(context, builder, sig, args):
-        v = context.cast(builder, args[2], sig.args[2], types.uint32)
-        builder.store(v, _u32_slot(context, builder, sig, args))
-        return context.get_dummy_value()
-
-    return types.void(buf, slot, value), codegen
 
 
 @njit(cache=True)
@@ -228,44 +178,6 @@ def ray_intersect(intersect1, scene, buf, ox, oy, oz, dx, dy, dz, tnear, tfar):
     return np.float64(buf[8]), np.int64(_load_u32(buf, 17))
 
 
-# Ray packets (``rtcOccluded4`` / ``rtcOccluded8``): one RTCRay4/8 in SoA layout, field f of lane r
-# in float32 slot ``f * K + r`` (K = the packet width), followed by the valid mask (K int32).
-#: Fields of RTCRayN in order: org x, y, z, tnear, dir x, y, z, time, tfar, mask, id, flags.
-PACKET_FIELDS = 12
-#: Slots reserved for the widest packet used (8) and its valid mask.
-PACKET_FLOATS = (PACKET_FIELDS + 1) * 8
-#: Embree requires an RTCRay8 to be 32-byte aligned (16 for RTCRay4).
-PACKET_ALIGN = 32
-
-
-@njit(cache=True)
-def new_ray_packet():
-    """(PACKET_FLOATS,) float32 scratch for one ray packet of up to 8 rays and its valid mask,
-    32-byte aligned, zeroed. Fill lanes with :func:`packet_set_ray`, cast with :func:`packet_occluded`."""
-    spare = PACKET_ALIGN // 4 - 1
-    raw = np.zeros(PACKET_FLOATS + spare, np.float32)
-    skip = ((PACKET_ALIGN - raw.ctypes.data % PACKET_ALIGN) % PACKET_ALIGN) // 4
-    return raw[skip:skip + PACKET_FLOATS]
-
-
-@njit(cache=True, forceinline=True)
-def packet_set_ray(pk, width, lane, ox, oy, oz, dx, dy, dz, tnear, tfar):
-    """Write a ray into lane ``lane`` of the packet pk (width 4 or 8; arguments as
-    :func:`ray_occluded`). The caller keeps ``tnear <= tfar`` (an empty segment is not tested here)."""
-    pk[lane] = ox
-    pk[width + lane] = oy
-    pk[2 * width + lane] = oz
-    pk[3 * width + lane] = max(tnear, 0.0)
-    pk[4 * width + lane] = dx
-    pk[5 * width + lane] = dy
-    pk[6 * width + lane] = dz
-    pk[7 * width + lane] = 0.0
-    pk[8 * width + lane] = tfar
-    _store_u32(pk, 9 * width + lane, INVALID_ID)   # mask: all geometries
-    _store_u32(pk, 10 * width + lane, 0)           # id
-    _store_u32(pk, 11 * width + lane, 0)           # flags
-
-
 @njit(cache=True)
 def packet_occluded(occluded_n, width, scene, pk, n):
     """Cast lanes 0..n-1 of the packet pk with Embree's ``rtcOccluded4`` / ``rtcOccluded8``
@@ -275,12 +187,6 @@ def packet_occluded(occluded_n, width, scene, pk, n):
         _store_u32(pk, PACKET_FIELDS * width + lane, INVALID_ID if lane < n else 0)  # -1: active
     base = _address(pk)
     occluded_n(base + 4 * PACKET_FIELDS * width, scene, base, 0)
-
-
-@njit(cache=True, forceinline=True)
-def lane_occluded(pk, width, lane):
-    """True if lane ``lane`` of the packet cast last hit something (Embree set its tfar to -inf)."""
-    return pk[8 * width + lane] < 0.0
 
 
 @njit(parallel=True, cache=True)
@@ -306,3 +212,35 @@ def occluded_rays(occluded1, scene, org, dirs, tnear, tfar, out):
         for i in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
             out[i] = ray_occluded(occluded1, scene, buf, org[i, 0], org[i, 1], org[i, 2],
                                   dirs[i, 0], dirs[i, 1], dirs[i, 2], tnear[i], tfar[i])
+
+
+# Device functions of the kernel caster "lightcuts.embree" (lightcuts.accel.kernel_api):
+# data = (EMBREE_TAG, intersect1, occluded1, occluded_n, scene) from EmbreeCaster.kernel_caster.
+
+@njit(cache=True)
+def embree_new_scratch(data):
+    """Per-thread scratch: one aligned RTCRayHit (:func:`new_ray_buffer`)."""
+    return new_ray_buffer()
+
+
+@njit(cache=True, forceinline=True)
+def embree_intersect(data, buf, ox, oy, oz, dx, dy, dz, tnear, tfar):
+    """KernelCaster.intersect: :func:`ray_intersect` with ``rtcIntersect1``."""
+    return ray_intersect(data[1], data[4], buf, ox, oy, oz, dx, dy, dz, tnear, tfar)
+
+
+@njit(cache=True, forceinline=True)
+def embree_occluded(data, buf, ox, oy, oz, dx, dy, dz, tnear, tfar):
+    """KernelCaster.occluded: :func:`ray_occluded` with ``rtcOccluded1``."""
+    return ray_occluded(data[2], data[4], buf, ox, oy, oz, dx, dy, dz, tnear, tfar)
+
+
+@njit(cache=True, forceinline=True)
+def embree_packet_occluded(data, buf, pk, width, n):
+    """KernelCaster.packet_occluded: :func:`packet_occluded` with ``rtcOccluded8`` / ``rtcOccluded4``."""
+    packet_occluded(data[3], width, data[4], pk, n)
+
+
+#: First element of the Embree caster's kernel data.
+EMBREE_TAG = register_kernel_caster("lightcuts.embree", embree_intersect, embree_occluded, embree_packet_occluded,
+                                    embree_new_scratch)

@@ -38,10 +38,10 @@ is the same whatever the thread count or batch split: same scene, counts and see
 lights. The kernels avoid fastmath for the same reason.
 
 Two routes trace the same paths with the same per-hit code (:func:`_scatter`) and, given the same
-hits from the caster, identical VPLs in (path, bounce) order: where the caster offers ``kernel_handles`` (the ``embree`` caster),
-one numba kernel traces whole paths with per-ray Embree calls (one parallel region per 32K-path
-chunk, no compaction); otherwise a wavefront over the caster's batch ``intersect``, one batch per
-bounce with the per-path arithmetic in numba ``prange`` kernels. Ray origins leave surfaces along
+hits from the caster, identical VPLs in (path, bounce) order: where the caster is kernel-callable
+(``kernel_caster``: ``embree``, the BVH casters), one numba kernel traces whole paths with per-ray
+caster calls (one parallel region per 32K-path chunk, no compaction); otherwise a wavefront over
+the caster's batch ``intersect``, one batch per bounce with the per-path arithmetic in numba ``prange`` kernels. Ray origins leave surfaces along
 the normal by ``ray_offset(scene)`` (tnear 0), so no ray hits the surface it starts on.
 """
 
@@ -52,7 +52,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from lightcuts.accel.embree_kernels import new_ray_buffer, ray_intersect
+from lightcuts.accel.base import kernel_caster_of
+from lightcuts.accel.kernel_api import intersect, new_scratch
 from lightcuts.hashing import mix64 as _mix64
 from lightcuts.lights.lightset import LUMINANCE, LightSet
 from lightcuts.parallel import next_task, on_counter
@@ -197,18 +198,19 @@ def _scatter_wave(key, bounce, path, org, dirs, pw, thit, prim, face_normal, fac
 
 
 @njit(cache=True, nogil=True)
-def _trace_fused(intersect1, scene, key, path0, n, cdf, p0, e1, e2, normal, power, eps, face_normal, face_p0,
-                 albedo, emitter, max_bounces, rr_start, slots, counts, vpos, vnrm, vint, tasks):
-    """Whole paths path0 .. path0 + n - 1 with per-ray Embree calls (``caster.kernel_handles``): one
-    thread's share, chunks of _FUSED_CHUNK paths taken from the counter ``tasks`` (int64 (1,), zero
-    at the start; lightcuts.parallel.next_task). A ``nogil`` kernel on lightcuts.parallel's threads
-    rather than a ``parallel=True`` one: it compiles in seconds less.
+def _trace_fused(cdata, key, path0, n, cdf, p0, e1, e2, normal, power, eps, face_normal,
+                 face_p0, albedo, emitter, max_bounces, rr_start, slots, counts, vpos, vnrm, vint, tasks):
+    """Whole paths path0 .. path0 + n - 1 with per-ray calls of the caster (its data ``cdata``,
+    lightcuts.accel.kernel_api): one thread's share, chunks of _FUSED_CHUNK paths taken from the
+    counter ``tasks`` (int64 (1,), zero at the start; lightcuts.parallel.next_task). A ``nogil``
+    kernel on lightcuts.parallel's threads rather than a ``parallel=True`` one: it compiles in
+    seconds less.
 
     counts (n,) int64: VPLs of each path. With slots > 0, path i writes its VPLs to rows
     i * slots .. i * slots + counts[i] - 1 of vpos, vnrm, vint ((n * slots, 3); slots = max_bounces);
     with slots = 0 only counts are written (the pilot).
     """
-    buf = new_ray_buffer()
+    buf = new_scratch(cdata)
     while True:
         c = next_task(tasks)
         if c * _FUSED_CHUNK >= n:
@@ -218,7 +220,7 @@ def _trace_fused(intersect1, scene, key, path0, n, cdf, p0, e1, e2, normal, powe
             ox, oy, oz, dx, dy, dz, pr, pg, pb = _start(key, path, cdf, p0, e1, e2, normal, power, eps)
             k = 0
             for bounce in range(1, max_bounces + 1):
-                thit, f = ray_intersect(intersect1, scene, buf, ox, oy, oz, dx, dy, dz, 0.0, np.inf)
+                thit, f = intersect(cdata, buf, ox, oy, oz, dx, dy, dz, 0.0, np.inf)
                 res = _scatter(key, bounce, path, ox, oy, oz, dx, dy, dz, pr, pg, pb, thit, f, face_normal, face_p0,
                                albedo, emitter, max_bounces, rr_start)
                 status = res[0]
@@ -275,12 +277,12 @@ class _Emitters:
 
 def _trace(scene, caster, emitters, key, n_paths, max_bounces, rr_start, eps, count_only=False):
     """Trace paths 0 .. n_paths - 1; (position, normal, intensity) of their VPLs in (path, bounce)
-    order, or only their number. Per-ray calls inside one kernel where the caster offers
-    ``kernel_handles``, else a wavefront over the batch API; both give the same VPLs."""
+    order, or only their number. Per-ray calls inside one kernel where the caster offers a
+    ``kernel_caster``, else a wavefront over the batch API; both give the same VPLs."""
     power = emitters.unit_power / n_paths
     geometry = (np.ascontiguousarray(scene.face_normals), np.ascontiguousarray(scene.triangles[:, 0]),
                 np.ascontiguousarray(scene.albedo), np.ascontiguousarray(scene.emission.max(axis=1) > 0))
-    handles = getattr(caster, "kernel_handles", None)
+    handles = kernel_caster_of(caster, "lights.indirect")
     route = _trace_chunk_fused if handles is not None else _trace_chunk_wavefront
     chunk = _CHUNK if handles is None else max(1, _SLOT_ROWS // max_bounces)
     parts, n_vpl = [], 0
@@ -301,12 +303,11 @@ def _trace(scene, caster, emitters, key, n_paths, max_bounces, rr_start, eps, co
 
 def _trace_chunk_fused(caster, handles, emitters, geometry, key, path0, n, power, eps, max_bounces, rr_start,
                        count_only):
-    intersect1, _, scene_handle = handles
     slots = 0 if count_only else max_bounces
     counts = np.empty(n, np.int64)
     vpos, vnrm, vint = (np.empty((n * slots, 3)) for _ in range(3))
-    args = (intersect1, scene_handle, key, path0, n, emitters.cdf, emitters.p0, emitters.e1, emitters.e2,
-            emitters.normal, power, eps, *geometry, max_bounces, rr_start, slots, counts, vpos, vnrm, vint)
+    args = (handles.data, key, path0, n, emitters.cdf, emitters.p0, emitters.e1, emitters.e2, emitters.normal,
+            power, eps, *geometry, max_bounces, rr_start, slots, counts, vpos, vnrm, vint)
     on_counter(_trace_fused, n, 2 * _FUSED_CHUNK, *args)
     if count_only:
         return int(counts.sum())

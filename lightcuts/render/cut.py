@@ -26,7 +26,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from lightcuts.accel.embree_kernels import lane_occluded, packet_occluded, packet_set_ray, ray_occluded
+from lightcuts.accel.kernel_api import occluded, packet_occluded
+from lightcuts.accel.packets import lane_occluded, packet_set_ray
 from lightcuts.lights.lightset import LUMINANCE
 from lightcuts.render.bounds import DIRECTIONAL, cluster_error_bound_framed, receiver_frames
 from lightcuts.render.forest import (LF_INDIRECT, LF_NRM, LF_POS, LF_TYPE, NB_AXIS, NB_COS, NB_FA, NB_HI, NB_I,
@@ -75,14 +76,15 @@ def _light_mg(typ, p0, p1, p2, nl0, nl1, nl2, c2, x0, x1, x2, n0, n1, n2, r0, r1
 
 @njit(cache=True, error_model="numpy")
 def light_mgv(j, light_f, x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, exponent,
-              clamp_d2, ray_offset, visibility, occluded1, scene, buf):
+              clamp_d2, ray_offset, visibility, cdata, buf):
     """``M G V`` per RGB channel of light j at the receiver x, with one shadow ray when M G > 0.
 
     light_f : the forest's light rows; x : receiver; n : unit shading normal (facing the viewer);
     r : mirror direction of wo; rd, rs, exponent : the receiver's material; clamp_d2 : squared
     clamping distance for indirect lights (0: off); ray_offset : shadow-ray origin offset along n and
     the gap left before the light, world units; visibility : False skips the shadow ray (V = 1:
-    unshadowed shading, and timing without rays); occluded1, scene, buf : Embree handles and scratch.
+    unshadowed shading, and timing without rays); cdata, buf : the caster's data and scratch
+    (lightcuts.accel.kernel_api).
     Returns ``(mgv_r, mgv_g, mgv_b, ratio, rays)``: ratio = unclamped / clamped G (>= 1),
     rays = shadow rays counted (0 or 1; 1 also for a light closer than ray_offset, not cast).
     """
@@ -95,7 +97,7 @@ def light_mgv(j, light_f, x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0
         return 0.0, 0.0, 0.0, 1.0, 0
     if not visibility:
         return m0, m1, m2, ratio, 0
-    if tfar > 0.0 and ray_occluded(occluded1, scene, buf, o0, o1, o2, d0, d1, d2, 0.0, tfar):
+    if tfar > 0.0 and occluded(cdata, buf, o0, o1, o2, d0, d1, d2, 0.0, tfar):
         return 0.0, 0.0, 0.0, 1.0, 1
     return m0, m1, m2, ratio, 1
 
@@ -131,10 +133,11 @@ def node_bound(k, node_b, node_bi, x0, x1, x2, n0, n1, n2, r0, r1, r2, fr, rd0, 
 
 
 @njit(cache=True, error_model="numpy")
-def _flush(occluded_n, width, scene, pk, lanes, lane_slot, slot_node, slot_mgv, slot_ratio, node_b, t0, t1, t2):
+def _flush(cdata, buf, width, pk, lanes, lane_slot, slot_node, slot_mgv, slot_ratio, node_b,
+           t0, t1, t2):
     """Cast the waiting shadow rays (lanes 0..lanes-1 of the packet pk) and zero the estimate of
     each slot whose ray is occluded. Returns the cut's RGB total t less the estimates so removed."""
-    packet_occluded(occluded_n, width, scene, pk, lanes)
+    packet_occluded(cdata, buf, pk, width, lanes)
     for r in range(lanes):
         q = lane_slot[r]
         if q >= 0 and lane_occluded(pk, width, r):
@@ -151,14 +154,14 @@ def _flush(occluded_n, width, scene, pk, lanes, lane_slot, slot_node, slot_mgv, 
 
 @njit(cache=True, error_model="numpy")
 def lightcut(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, exponent,
-             node_b, node_bi, roots, light_f, eps, max_cut, clamp_d2, ray_offset, visibility, occluded1, scene, buf,
-             occluded_n, width, pk, heap, slot_node, slot_mgv, slot_ratio, lane_slot):
+             node_b, node_bi, roots, light_f, eps, max_cut, clamp_d2, ray_offset, visibility, cdata, buf, width, pk,
+             heap, slot_node, slot_mgv, slot_ratio, lane_slot):
     """Radiance reflected at x towards the viewer, by a lightcut through every tree of the forest.
 
     x, n, r, rd, rs, exponent : receiver as in :func:`light_mgv`; node_b, node_bi, roots, light_f :
-    the forest; eps : relative error threshold; max_cut : cut size limit; occluded_n, width, pk :
-    the packet function and its width (``caster.packet_handles``) and the packet's scratch
-    (lightcuts.accel.embree_kernels.new_ray_packet); the remaining arguments: see
+    the forest; eps : relative error threshold; max_cut : cut size limit; width, pk :
+    the caster's packet width (lightcuts.accel.base.KernelCaster) and the packet
+    (lightcuts.accel.packets.new_ray_packet); the remaining arguments: see
     :func:`light_mgv` and the module docstring (scratch).
     Returns ``(L_r, L_g, L_b, cut_size, shadow_rays, clamp_lost)``: clamp_lost = the cut's estimate
     of the luminance that clamping removed here.
@@ -179,7 +182,7 @@ def lightcut(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, e
         k = roots[t]
         m0, m1, m2, ratio, nr = light_mgv(np.int64(node_bi[k, NB_REP] & REP_MASK), light_f, x0, x1, x2, n0, n1, n2,
                                           r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, exponent, clamp_d2, ray_offset,
-                                          visibility, occluded1, scene, buf)
+                                          visibility, cdata, buf)
         rays += nr
         slot_node[n_slots] = k
         slot_mgv[n_slots, 0] = m0
@@ -205,8 +208,8 @@ def lightcut(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, e
         if entry_bound(heap[0]) <= eps * luminance(t0, t1, t2):
             if lanes == 0:
                 break
-            t0, t1, t2 = _flush(occluded_n, width, scene, pk, lanes, lane_slot, slot_node, slot_mgv, slot_ratio,
-                                node_b, t0, t1, t2)
+            t0, t1, t2 = _flush(cdata, buf, width, pk, lanes, lane_slot, slot_node, slot_mgv,
+                                slot_ratio, node_b, t0, t1, t2)
             lanes = 0
             continue
         # The top s leaves the heap; its first child with a bound takes its place (one sift down
@@ -219,8 +222,8 @@ def lightcut(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, e
         jr = np.int64(node_bi[left + 1, NB_REP] & REP_MASK)
         if lanes + (jl != prep) + (jr != prep) > width:
             # Cast before s's estimate leaves t: a waiting ray of s may change that estimate.
-            t0, t1, t2 = _flush(occluded_n, width, scene, pk, lanes, lane_slot, slot_node, slot_mgv, slot_ratio,
-                                node_b, t0, t1, t2)
+            t0, t1, t2 = _flush(cdata, buf, width, pk, lanes, lane_slot, slot_node, slot_mgv,
+                                slot_ratio, node_b, t0, t1, t2)
             lanes = 0
         # s's waiting ray, if any, follows s's representative: it stays with the left child (which
         # takes s's slot) or moves to the right child's new slot, or nobody needs it any more.
@@ -283,11 +286,12 @@ def lightcut(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, e
             t2 += m2 * node_b[c, NB_I + 2]
         n_slots += 1
         if lanes == width:
-            t0, t1, t2 = _flush(occluded_n, width, scene, pk, lanes, lane_slot, slot_node, slot_mgv, slot_ratio,
-                                node_b, t0, t1, t2)
+            t0, t1, t2 = _flush(cdata, buf, width, pk, lanes, lane_slot, slot_node, slot_mgv,
+                                slot_ratio, node_b, t0, t1, t2)
             lanes = 0
     if lanes > 0:
-        _flush(occluded_n, width, scene, pk, lanes, lane_slot, slot_node, slot_mgv, slot_ratio, node_b, t0, t1, t2)
+        _flush(cdata, buf, width, pk, lanes, lane_slot, slot_node, slot_mgv, slot_ratio, node_b,
+               t0, t1, t2)
 
     # The final sum again, from the cut itself: the running total above drifts by cancellation.
     t0 = 0.0

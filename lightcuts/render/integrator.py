@@ -21,9 +21,11 @@ compiles several times slower on a cold cache (docs/performance.md, "Renderer").
 computed by one thread and written to its own cells, so images do not depend on the thread count or
 the scheduling.
 
-numba caches each module's kernels keyed on that module's source file only: after editing bounds,
-shading, forest, heap, cut, reference or camera, delete ``lightcuts/render/__pycache__/*.nb[ic]``
-(or touch this file), or a cached kernel built from the old code may still run.
+The kernel compiles once per kernel caster (the tag in the caster's data, lightcuts.accel.kernel_api)
+and calls that caster's device functions directly. numba caches each module's kernels keyed on that
+module's source file only: after editing bounds, shading, forest, heap, cut, reference, camera or a
+caster's device functions (lightcuts/accel), delete ``lightcuts/render/__pycache__/*.nb[ic]`` (or
+touch this file), or a cached kernel built from the old code may still run.
 """
 
 from __future__ import annotations
@@ -36,7 +38,9 @@ from typing import Callable
 import numpy as np
 from numba import njit
 
-from lightcuts.accel.embree_kernels import new_ray_buffer, new_ray_packet, ray_intersect
+from lightcuts.accel.base import kernel_caster_of
+from lightcuts.accel.kernel_api import intersect, new_scratch
+from lightcuts.accel.packets import new_ray_packet
 from lightcuts.errors import LightcutsError
 from lightcuts.lights.environment import envmap_radiance
 from lightcuts.lights.lightset import LUMINANCE
@@ -92,12 +96,14 @@ class RenderResult:
 
 
 @njit(cache=True, error_model="numpy")
-def _render_pixel(intersect1, occluded1, occluded_n, width, scene, cam, seed, spp, sx, sy, px, py,
+def _render_pixel(cdata, width, cam, seed, spp, sx, sy, px, py,
                   face_normal, albedo, specular, exponent, emission, node_b, node_bi, roots, light_f, light_i,
                   env_pixels, env_rotation, env_scale, eps, max_cut, clamp_d2, ray_offset, visibility, reference,
                   buf, pk, heap, slot_node, slot_mgv, slot_ratio, lane_slot):
     """All eye rays of pixel (px, py): returns (L_r, L_g, L_b, cut, shadow_rays, clamp_lost), cut
-    and clamp_lost summed over the eye rays. An empty env_pixels (0, 0, 3) means no environment."""
+    and clamp_lost summed over the eye rays. An empty env_pixels (0, 0, 3) means no environment.
+    cdata, width : the caster's data and packet width (lightcuts.accel.base.KernelCaster); buf : its
+    scratch."""
     o0, o1, o2 = cam[CAM_POSITION], cam[CAM_POSITION + 1], cam[CAM_POSITION + 2]
     a0 = 0.0
     a1 = 0.0
@@ -107,7 +113,7 @@ def _render_pixel(intersect1, occluded1, occluded_n, width, scene, cam, seed, sp
     rays = 0
     for s in range(spp):
         d0, d1, d2 = eye_ray(cam, seed, px, py, s, sx, sy)
-        t, prim = ray_intersect(intersect1, scene, buf, o0, o1, o2, d0, d1, d2, 0.0, np.inf)
+        t, prim = intersect(cdata, buf, o0, o1, o2, d0, d1, d2, 0.0, np.inf)
         if prim < 0:
             if env_pixels.shape[0] > 0:
                 e0, e1, e2 = envmap_radiance(env_pixels, env_rotation, env_scale, d0, d1, d2)
@@ -130,12 +136,11 @@ def _render_pixel(intersect1, occluded1, occluded_n, width, scene, cam, seed, sp
         rs0, rs1, rs2 = specular[prim, 0], specular[prim, 1], specular[prim, 2]
         if reference:
             res = all_lights(p0, p1, p2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, exponent[prim],
-                             light_f, light_i, clamp_d2, ray_offset, visibility, occluded1, scene, buf)
+                             light_f, light_i, clamp_d2, ray_offset, visibility, cdata, buf)
         else:
             res = lightcut(p0, p1, p2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, exponent[prim],
                            node_b, node_bi, roots, light_f, eps, max_cut, clamp_d2, ray_offset, visibility,
-                           occluded1, scene, buf, occluded_n, width, pk, heap, slot_node, slot_mgv,
-                           slot_ratio, lane_slot)
+                           cdata, buf, width, pk, heap, slot_node, slot_mgv, slot_ratio, lane_slot)
         a0 += res[0]
         a1 += res[1]
         a2 += res[2]
@@ -146,10 +151,10 @@ def _render_pixel(intersect1, occluded1, occluded_n, width, scene, cam, seed, sp
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _render_band(intersect1, occluded1, occluded_n, width, scene, cam, seed, spp, sx, sy, x0, x1, y0, y1,
-                 face_normal, albedo, specular, exponent, emission, node_b, node_bi, roots, light_f, light_i,
-                 env_pixels, env_rotation, env_scale, eps, max_cut, clamp_d2, ray_offset, visibility, reference,
-                 pixels, out_rgb, out_cut, out_rays, out_lost, tasks):
+def _render_band(cdata, width, cam, seed, spp, sx, sy, x0, x1, y0, y1, face_normal, albedo, specular, exponent,
+                 emission, node_b, node_bi, roots, light_f, light_i, env_pixels, env_rotation, env_scale, eps,
+                 max_cut, clamp_d2, ray_offset, visibility, reference, pixels, out_rgb, out_cut, out_rays, out_lost,
+                 tasks):
     """Render pixels [x0, x1) x [y0, y1) (full-image coordinates) into the band's output rows: one
     thread's share, chunks of CHUNK pixels taken from the counter ``tasks`` (int64 (1,), zero at the
     start; lightcuts.parallel.next_task) until none is left. A non-empty ``pixels`` ((K, 2) int64,
@@ -161,7 +166,7 @@ def _render_band(intersect1, occluded1, occluded_n, width, scene, cam, seed, spp
     cols = x1 - x0
     n = (y1 - y0) * cols
     cap = max(max_cut, roots.shape[0]) + 2
-    buf = new_ray_buffer()
+    buf = new_scratch(cdata)
     pk = new_ray_packet()
     lane_slot = np.empty(width, np.int64)
     heap = np.empty(cap, np.uint64)
@@ -179,7 +184,7 @@ def _render_band(intersect1, occluded1, occluded_n, width, scene, cam, seed, spp
             if pixels.shape[0] > 0:
                 px, py = pixels[i, 0], pixels[i, 1]
             a0, a1, a2, cut, rays, lost = _render_pixel(
-                intersect1, occluded1, occluded_n, width, scene, cam, seed, spp, sx, sy, px, py,
+                cdata, width, cam, seed, spp, sx, sy, px, py,
                 face_normal, albedo, specular, exponent, emission, node_b, node_bi, roots, light_f, light_i,
                 env_pixels, env_rotation, env_scale, eps, max_cut, clamp_d2, ray_offset, visibility, reference,
                 buf, pk, heap, slot_node, slot_mgv, slot_ratio, lane_slot)
@@ -229,13 +234,10 @@ def _render(scene, caster, lights, trees, camera, spp, eps, max_cut, clamp, clam
         raise LightcutsError(f"render.clamp.min_distance: {clamp_min_distance} must be a finite number >= 0")
     if int(seed) != seed or seed < 0:
         raise LightcutsError(f"seed: {seed} must be a non-negative integer")
-    handles = getattr(caster, "kernel_handles", None)
-    packets = getattr(caster, "packet_handles", None)
-    if handles is None or packets is None:
+    kc = kernel_caster_of(caster)
+    if kc is None:
         raise LightcutsError(f"render.ray_caster: {type(caster).__name__} cannot be called from kernels; "
-                             f"use 'embree'")
-    intersect1, occluded1, scene_handle = handles
-    occluded_n, width, _ = packets
+                             f"use a kernel-callable caster such as 'embree'")
     forest = build_forest(lights, None if reference else trees)
     spp, max_cut, seed = int(spp), int(max_cut), int(seed)
     sx, sy = strata(spp)
@@ -261,12 +263,11 @@ def _render(scene, caster, lights, trees, camera, spp, eps, max_cut, clamp, clam
     f = forest
     for b0 in range(0, rows, band):
         b1 = min(rows, b0 + band)
-        on_counter(_render_band, (b1 - b0) * cols, 2 * CHUNK, intersect1, occluded1, occluded_n, width,
-                   scene_handle, cam, seed, spp, sx, sy, x0, x1, y0 + b0, y0 + b1, face_normal, albedo, specular,
-                   exponent, emission, f.node_b, f.node_bi, f.roots, f.light_f, f.light_i, env_pixels,
-                   env_rotation, env_scale, float(eps), max_cut, float(clamp_d2), float(ray_offset),
-                   bool(visibility), bool(reference), pix[b0:b1] if len(pix) else pix, rgb[b0:b1], cut[b0:b1],
-                   rays[b0:b1], lost[b0:b1])
+        on_counter(_render_band, (b1 - b0) * cols, 2 * CHUNK, *kc, cam, seed, spp, sx, sy, x0, x1, y0 + b0,
+                   y0 + b1, face_normal, albedo, specular, exponent, emission, f.node_b, f.node_bi, f.roots,
+                   f.light_f, f.light_i, env_pixels, env_rotation, env_scale, float(eps), max_cut, float(clamp_d2),
+                   float(ray_offset), bool(visibility), bool(reference), pix[b0:b1] if len(pix) else pix,
+                   rgb[b0:b1], cut[b0:b1], rays[b0:b1], lost[b0:b1])
         if progress is not None:
             progress(b1 - b0)
 
@@ -287,7 +288,8 @@ def render_image(scene, caster, lights: dict, trees: dict, camera=None, spp: int
                  reference: bool = False, visibility: bool = True, pixels=None) -> RenderResult:
     """Render with lightcuts (or, with ``reference=True``, every light at every pixel).
 
-    scene : lightcuts.scene.Scene; caster : a ray caster with ``kernel_handles`` (``embree``)
+    scene : lightcuts.scene.Scene; caster : a kernel-callable ray caster (``kernel_caster``: ``embree``,
+    ``bvh-sah``, ...)
     lights : {type: LightSet} (types of LIGHT_TYPES; empty or absent types contribute nothing)
     trees : {type: LightTree}, one per light set (ignored for the reference)
     camera : lightcuts.scene.Camera (default: ``scene.camera``)

@@ -14,7 +14,7 @@ from lightcuts.render.cut import light_mgv, luminance
 
 @njit(cache=True, error_model="numpy")
 def all_lights(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, exponent, light_f, light_i,
-               clamp_d2, ray_offset, visibility, occluded1, scene, buf):
+               clamp_d2, ray_offset, visibility, cdata, buf):
     """Radiance reflected at x towards the viewer: the sum of ``M G V I`` over every light.
 
     Arguments as lightcuts.render.cut.light_mgv, plus light_i : (L, 3) the lights' RGB intensities.
@@ -29,7 +29,7 @@ def all_lights(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2,
     for j in range(light_f.shape[0]):
         m0, m1, m2, ratio, nr = light_mgv(j, light_f, x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2,
                                           rs0, rs1, rs2, exponent, clamp_d2, ray_offset, visibility,
-                                          occluded1, scene, buf)
+                                          cdata, buf)
         rays += nr
         e0 = m0 * light_i[j, 0]
         e1 = m1 * light_i[j, 1]

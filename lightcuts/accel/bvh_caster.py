@@ -1,0 +1,116 @@
+"""BVH ray casters in numba: a topology builder + lightcuts.accel.bvh + lightcuts.accel.bvh_kernels.
+
+Each caster name pairs :class:`BVHCaster` with one topology builder, a function
+``builder(lo (F,3) float64, hi (F,3) float64) -> (left, right, prim, root)`` over the triangles'
+boxes in the light-tree builders' convention (lightcuts.accel.bvh). :func:`register_bvh_caster` is
+the hook: ``bvh-sah`` is the binned SAH builder (lightcuts.accel.bvh_build); another clustering
+registers the same class under its own name with ``register_bvh_caster(name, builder)``. All are
+kernel-callable (:attr:`BVHCaster.kernel_caster`), so they render, trace particles and render the
+reference like ``embree``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from lightcuts.accel.base import KernelCaster, RayCaster, check_mesh, check_rays
+from lightcuts.accel.bvh import FlatBVH, from_topology, triangle_boxes
+from lightcuts.accel.bvh_build import build_binned_sah
+from lightcuts.accel.registry import RAY_CASTERS
+from lightcuts.errors import LightcutsError
+
+#: Lanes per packet call (the BVH casts a packet's rays one by one).
+PACKET_WIDTH = 8
+
+
+class BVHCaster(RayCaster):
+    """Closest hit and occlusion by traversing a :class:`~lightcuts.accel.bvh.FlatBVH` in numba.
+
+    vertices (V, 3), faces (F, 3) : the mesh (vertices used as float32, like Embree's)
+    builder : topology builder (module docstring); name : its name, stored in the BVH
+    bvh : an already built (e.g. loaded) FlatBVH over this mesh instead of building one
+    """
+
+    def __init__(self, vertices, faces, builder=build_binned_sah, name: str = "bvh-sah",
+                 bvh: FlatBVH | None = None):
+        vertices, faces = check_mesh(vertices, faces)
+        self.n_faces = len(faces)
+        if bvh is None:
+            lo, hi = triangle_boxes(vertices, faces)
+            left, right, prim, root = builder(lo, hi)
+            bvh = from_topology(left, right, prim, root, vertices, faces, builder=name)
+        elif bvh.n_faces != self.n_faces:
+            raise LightcutsError(f"ray caster {name!r}: the BVH indexes {bvh.n_faces} triangles; the mesh has "
+                                 f"{self.n_faces}")
+        self.bvh = bvh
+        self.name = name
+        v = vertices.astype(np.float64)
+        self._tri = np.ascontiguousarray(v[faces.astype(np.int64)].reshape(-1, 9))
+        from lightcuts.accel.bvh_kernels import BVH_TAG
+
+        self._data = (BVH_TAG, bvh.lo, bvh.hi, bvh.right, bvh.prim, self._tri, np.int64(bvh.depth + 1))
+
+    @classmethod
+    def load(cls, path, vertices, faces) -> "BVHCaster":
+        """A caster over the mesh with the BVH saved at ``path`` (:meth:`FlatBVH.save`)."""
+        bvh = FlatBVH.load(path)
+        return cls(vertices, faces, name=bvh.builder or "bvh", bvh=bvh)
+
+    def save(self, path) -> None:
+        """Save the BVH (.npz, keys in lightcuts.accel.bvh)."""
+        self.bvh.save(path)
+
+    def stats(self) -> dict:
+        """The BVH's SAH statistics, nodes, depth and memory (:meth:`FlatBVH.sah_stats`; memory counts
+        the node arrays and the caster's (F, 9) float64 triangle corners)."""
+        s = self.bvh.sah_stats()
+        return {**s, "memory_bytes": s["memory_bytes"] + self._tri.nbytes}
+
+    def close(self) -> None:
+        """Nothing to release (numpy arrays); for symmetry with the Embree caster."""
+
+    def __enter__(self) -> "BVHCaster":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    @property
+    def kernel_caster(self) -> KernelCaster:
+        return KernelCaster(self._data, PACKET_WIDTH)
+
+    def intersect(self, org, dirs, tnear=0.0, tfar=np.inf):
+        from lightcuts.accel.bvh_kernels import intersect_rays
+
+        org, dirs, tnear, tfar = check_rays(org, dirs, tnear, tfar)
+        t = np.empty(len(org), np.float64)
+        prim = np.empty(len(org), np.int32)
+        if len(org):
+            intersect_rays(self._data, org, dirs, tnear, tfar, t, prim)
+        return t, prim
+
+    def occluded(self, org, dirs, tnear=0.0, tfar=np.inf):
+        from lightcuts.accel.bvh_kernels import occluded_rays
+
+        org, dirs, tnear, tfar = check_rays(org, dirs, tnear, tfar)
+        out = np.empty(len(org), np.bool_)
+        if len(org):
+            occluded_rays(self._data, org, dirs, tnear, tfar, out)
+        return out
+
+
+def register_bvh_caster(name: str, builder, description: str, replace: bool = False):
+    """Register ``name`` as a kernel-callable ray caster: :class:`BVHCaster` over ``builder``'s topology
+    (``builder(lo, hi) -> (left, right, prim, root)``, see the module docstring). Returns the factory."""
+
+    def factory(vertices, faces):
+        return BVHCaster(vertices, faces, builder=builder, name=name)
+
+    factory.__doc__ = description
+    factory.__name__ = f"bvh_caster_{name.replace('-', '_')}"
+    RAY_CASTERS.register(name, factory, kernel_callable=True, description=description, replace=replace)
+    return factory
+
+
+register_bvh_caster("bvh-sah", build_binned_sah,
+                    "numba BVH, binned SAH (Wald 2007: longest centroid axis, 16 bins), one triangle per leaf")
