@@ -1,7 +1,8 @@
 """Grid ray casters: ``grid``, ``recursive-grid-{50,100,150}``, ``octree-{50,100,150}`` and ``hug``.
 
 All four structures are nested uniform grids (lightcuts.accel.grids) traversed by the same kernels
-(lightcuts.accel.grid_kernels), as in the comparison of Cazals et al. 1995 (section 3). Parameters
+(lightcuts.accel.grid_kernels), as in the comparison of Cazals et al. 1995 (section 3). All are
+kernel-callable: they render, trace particles and render the reference like ``embree``. Parameters
 are part of the caster's name, so a study selects them with ``render.ray_caster`` alone:
 ``recursive-grid`` and ``octree`` are MAXP 50 (aliases of the ``-50`` names). Other values: build a
 :class:`GridCaster` with :func:`build_forest` directly.
@@ -13,7 +14,7 @@ import time
 
 import numpy as np
 
-from lightcuts.accel.base import RayCaster, check_mesh, check_rays
+from lightcuts.accel.base import KernelCaster, RayCaster, check_mesh, check_rays
 from lightcuts.accel.grid_build import build_recursive, build_uniform
 from lightcuts.accel.grids import GridForest, grid_inv, triangle_boxes
 from lightcuts.accel.hug import ALPHA, LEVELS, build_hug
@@ -26,6 +27,8 @@ RECURSIVE_DEPTH = 5
 OCTREE_DEPTH = 16
 #: MAXP values registered for the comparators (the paper's sweep).
 MAXPS = (50, 100, 150)
+#: Lanes per packet call (the grids cast a packet's rays one by one).
+PACKET_WIDTH = 8
 
 
 def build_forest(vertices, faces, kind: str, maxp: int = 50, max_depth: int | None = None,
@@ -81,10 +84,10 @@ class GridCaster(RayCaster):
         cell = np.ascontiguousarray(ext / res)
         inv = np.ascontiguousarray(np.where(ext > 0, res / np.where(ext > 0, ext, 1.0), 0.0))
         scale = float(np.abs(np.concatenate([forest.lo[0], forest.hi[0]])).max() + np.linalg.norm(ext[0])) or 1.0
-        from lightcuts.accel.grid_kernels import MAILBOX
+        from lightcuts.accel.grid_kernels import GRID_TAG, MAILBOX
 
         meta = np.array([scale, self._depth, MAILBOX], np.float64)
-        self._data = (forest.lo, forest.hi, forest.res, cell, inv, forest.voxel0, forest.vox_items,
+        self._data = (GRID_TAG, forest.lo, forest.hi, forest.res, cell, inv, forest.voxel0, forest.vox_items,
                       forest.item_refs, forest.vox_subs, forest.sub_refs, tri, meta)
 
     @classmethod
@@ -113,6 +116,11 @@ class GridCaster(RayCaster):
         out.update({k: v for k, v in self.info.items() if k != "build_s"})
         return out
 
+    @property
+    def kernel_caster(self) -> KernelCaster:
+        """For the render kernels (lightcuts.accel.kernel_api): the data tuple and packet width."""
+        return KernelCaster(self._data, PACKET_WIDTH)
+
     def intersect(self, org, dirs, tnear=0.0, tfar=np.inf):
         from lightcuts.accel.grid_kernels import intersect_rays
 
@@ -138,15 +146,15 @@ def _factory(name: str, kind: str, doc: str, **params):
 def register_grid_casters() -> None:
     """Register the grid casters (module docstring) in RAY_CASTERS."""
     RAY_CASTERS.register("grid", _factory("grid", "grid", "one uniform grid, cube-root criterion (about F voxels)"),
-                         kernel_callable=False)
+                         kernel_callable=True)
     RAY_CASTERS.register("hug", _factory("hug", "hug", "hierarchy of uniform grids (Cazals et al. 1995): "
-                                         "3 filter levels, alpha 0.01"), kernel_callable=False)
+                                         "3 filter levels, alpha 0.01"), kernel_callable=True)
     for kind, depth, what in (("recursive-grid", RECURSIVE_DEPTH, "recursive grid (Jevans and Wyvill 1989)"),
                               ("octree", OCTREE_DEPTH, "object octree")):
         for maxp in MAXPS:
             name = f"{kind}-{maxp}"
             RAY_CASTERS.register(name, _factory(name, kind, f"{what}, MAXP {maxp}, depth limit {depth}", maxp=maxp),
-                                 aliases=(kind,) if maxp == MAXPS[0] else (), kernel_callable=False)
+                                 aliases=(kind,) if maxp == MAXPS[0] else (), kernel_callable=True)
 
 
 register_grid_casters()

@@ -14,7 +14,11 @@ Mailbox: each ray has an id (a counter in the scratch), and a small open-address
 ray has tested, so a triangle referenced by several voxels is tested once (if the probed slots are
 all taken by the ray's other triangles it is tested again, which is only slower).
 
-Caster data ``(lo, hi, res, cell, inv, voxel0, vox_items, item_refs, vox_subs, sub_refs, tri, meta)``:
+Triangles: the watertight test of Woop, Benthin and Wald (lightcuts.accel.bvh_kernels.watertight_t),
+so no ray slips through an edge shared by two triangles.
+
+Caster data ``(GRID_TAG, lo, hi, res, cell, inv, voxel0, vox_items, item_refs, vox_subs, sub_refs, tri, meta)``
+(the device functions are registered with lightcuts.accel.kernel_api under ``lightcuts.grid``):
 the forest's arrays, cell and inv (G, 3) float64 (extent / n and n / extent, 0 on a flat axis),
 ``tri (F, 9)`` float64 triangle corners, ``meta`` (3,) float64 = (scene scale, stack levels,
 mailbox slots). The scratch (float64) is the ray counter, the mailbox and a stack of
@@ -27,33 +31,15 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from lightcuts.accel.bvh_kernels import ray_frame, watertight_t
+from lightcuts.accel.kernel_api import register_kernel_caster
+from lightcuts.accel.packets import mark_lane_occluded, packet_get_ray
 from lightcuts.parallel import on_threads
 
 TOL = 1e-9
 MAILBOX = 256
 PROBES = 8
 STATE = 9
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def tri_t(tri, f, ox, oy, oz, dx, dy, dz):
-    """Distance along the ray to triangle f of tri (F, 9), inf on a miss (Moeller-Trumbore, float64)."""
-    e1x, e1y, e1z = tri[f, 3] - tri[f, 0], tri[f, 4] - tri[f, 1], tri[f, 5] - tri[f, 2]
-    e2x, e2y, e2z = tri[f, 6] - tri[f, 0], tri[f, 7] - tri[f, 1], tri[f, 8] - tri[f, 2]
-    px, py, pz = dy * e2z - dz * e2y, dz * e2x - dx * e2z, dx * e2y - dy * e2x
-    det = e1x * px + e1y * py + e1z * pz
-    if det == 0.0:
-        return np.inf
-    inv = 1.0 / det
-    sx, sy, sz = ox - tri[f, 0], oy - tri[f, 1], oz - tri[f, 2]
-    u = (sx * px + sy * py + sz * pz) * inv
-    if u < 0.0 or u > 1.0:
-        return np.inf
-    qx, qy, qz = sy * e1z - sz * e1y, sz * e1x - sx * e1z, sx * e1y - sy * e1x
-    v = (dx * qx + dy * qy + dz * qz) * inv
-    if v < 0.0 or u + v > 1.0:
-        return np.inf
-    return (e2x * qx + e2y * qy + e2z * qz) * inv
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -80,8 +66,8 @@ def _enter(glo, ghi, gres, ginv, g, t0, t1, o, d, inv, tol, wtol):
 @njit(cache=True, error_model="numpy")
 def traverse(data, scratch, ox, oy, oz, dx, dy, dz, tnear, tfar, any_hit):
     """(t, prim): the closest hit with tnear <= t <= tfar (any hit if ``any_hit``), (inf, -1) if none."""
-    glo, ghi, gres, gcell, ginv = data[0], data[1], data[2], data[3], data[4]
-    voxel0, vitems, irefs, vsubs, srefs, tri, meta = data[5], data[6], data[7], data[8], data[9], data[10], data[11]
+    glo, ghi, gres, gcell, ginv = data[1], data[2], data[3], data[4], data[5]
+    voxel0, vitems, irefs, vsubs, srefs, tri, meta = data[6], data[7], data[8], data[9], data[10], data[11], data[12]
     if not tfar >= tnear or tri.shape[0] == 0:
         return np.inf, np.int64(-1)
     dl = np.sqrt(dx * dx + dy * dy + dz * dz)
@@ -93,6 +79,7 @@ def traverse(data, scratch, ox, oy, oz, dx, dy, dz, tnear, tfar, any_hit):
     d = (dx, dy, dz)
     inv = (1.0 / dx if dx != 0.0 else np.inf, 1.0 / dy if dy != 0.0 else np.inf, 1.0 / dz if dz != 0.0 else np.inf)
     step = (1 if dx > 0.0 else -1, 1 if dy > 0.0 else -1, 1 if dz > 0.0 else -1)
+    kx, ky, kz, sx, sy, sz = ray_frame(dx, dy, dz)
     scratch[0] += 1.0
     stamp = scratch[0]
     mb = int(meta[2])
@@ -139,7 +126,7 @@ def traverse(data, scratch, ox, oy, oz, dx, dy, dz, tnear, tfar, any_hit):
                         break
                 if seen:
                     continue
-                t = tri_t(tri, f, ox, oy, oz, dx, dy, dz)
+                t = watertight_t(tri, f, ox, oy, oz, kx, ky, kz, sx, sy, sz)
                 if t != np.inf and tnear <= t <= best_t and (best < 0 or t < best_t):
                     best_t = t
                     best = f
@@ -198,7 +185,7 @@ def traverse(data, scratch, ox, oy, oz, dx, dy, dz, tnear, tfar, any_hit):
 @njit(cache=True, error_model="numpy")
 def grid_new_scratch(data):
     """The per-thread scratch (module docstring): ray counter 0, empty mailbox, the stack."""
-    meta = data[11]
+    meta = data[12]
     mb = int(meta[2])
     out = np.empty(1 + 2 * mb + STATE * max(int(meta[1]) - 1, 1))
     out[0] = 0.0
@@ -217,6 +204,20 @@ def grid_intersect(data, scratch, ox, oy, oz, dx, dy, dz, tnear, tfar):
 def grid_occluded(data, scratch, ox, oy, oz, dx, dy, dz, tnear, tfar):
     """Any hit with tnear <= t <= tfar."""
     return traverse(data, scratch, ox, oy, oz, dx, dy, dz, tnear, tfar, True)[1] >= 0
+
+
+@njit(cache=True, error_model="numpy")
+def grid_packet_occluded(data, scratch, pk, width, n):
+    """A packet of shadow rays, lane by lane (lightcuts.accel.kernel_api)."""
+    for lane in range(n):
+        ox, oy, oz, dx, dy, dz, tnear, tfar = packet_get_ray(pk, width, lane)
+        if traverse(data, scratch, ox, oy, oz, dx, dy, dz, tnear, tfar, True)[1] >= 0:
+            mark_lane_occluded(pk, width, lane)
+
+
+#: First element of a grid caster's kernel data (lightcuts.accel.kernel_api).
+GRID_TAG = register_kernel_caster("lightcuts.grid", grid_intersect, grid_occluded, grid_packet_occluded,
+                                  grid_new_scratch)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
