@@ -233,7 +233,7 @@ def structures(scene):
 
 def test_objects_referenced_by_exactly_the_voxels_their_box_overlaps(structures, scene):
     blo, bhi = triangle_boxes(*scene)
-    eps = 1e-9 * np.abs(scene[0]).max()
+    eps = 1e-8 * np.abs(scene[0]).max()
     for kind, forest in structures:
         owner = forest.grid_of_voxels()
         vox = np.repeat(np.arange(forest.n_voxels), np.diff(forest.vox_items))
@@ -268,7 +268,7 @@ def test_subgrids_referenced_by_every_parent_voxel_they_overlap(structures):
             parents = {int(owner[x]) for x in voxels}
             assert len(parents) == 1, (kind, c)
             P = parents.pop()
-            eps = 1e-9 * (np.abs(forest.hi[0]).max() + 1)
+            eps = 1e-8 * (np.abs(forest.hi[0]).max() + 1)
             assert (forest.lo[P] - eps <= forest.lo[c]).all() and (forest.hi[c] <= forest.hi[P] + eps).all()
             inner = _overlapped(forest, P, forest.lo[c], forest.hi[c], -eps)
             outer = _overlapped(forest, P, forest.lo[c], forest.hi[c], eps)
@@ -401,3 +401,19 @@ def test_render_equals_embree(name, cornell_renders):
     rel = np.abs(a.image - b.image).max(axis=2) / np.maximum(a.image.max(axis=2), 1e-6)
     assert (rel[~cut_differs] > 1e-4).mean() < 0.01
     assert abs(float(a.image.mean()) - float(b.image.mean())) < 1e-3 * float(a.image.mean())
+
+
+@pytest.mark.parametrize("name", GRID_CASTERS)
+def test_no_ray_slips_through_a_closed_mesh(name):
+    """Rays from inside an icosphere through its vertices and edge midpoints all hit it, through the
+    grids as through the watertight test alone."""
+    mesh = trimesh.creation.icosphere(subdivisions=3)
+    v, f = mesh.vertices.astype(np.float32).astype(np.float64), mesh.faces
+    caster = make_caster((v, f), name)
+    targets = np.concatenate([v, 0.5 * (v[mesh.edges_unique[:, 0]] + v[mesh.edges_unique[:, 1]])])
+    rng = np.random.default_rng(4)
+    org = np.concatenate([np.zeros((len(targets), 3)), 0.3 * rng.standard_normal((len(targets), 3))])
+    dirs = np.concatenate([targets, targets]) - org
+    t, p = caster.intersect(org, dirs, 0.0, np.inf)
+    assert (p >= 0).all(), f"{(p < 0).sum()} rays slipped through"
+    assert caster.occluded(org, dirs, 0.0, np.inf).all()

@@ -8,8 +8,9 @@ spans the box ``[lo[g], hi[g]]`` cut into ``res[g]`` voxels per axis; its voxels
 (a sub-grid is traversed, clipped to the voxel's stretch of the ray, when the ray crosses the voxel).
 
 Voxel i along an axis is the closed interval ``[lo + i * cell, lo + (i + 1) * cell]``,
-``cell = (hi - lo) / n``; a box ``[a, b]`` is referenced by the voxels ``floor((a - lo) / cell)`` to
-``floor((b - lo) / cell)`` (clamped to the grid): every voxel that the closed box overlaps. An axis
+``cell = (hi - lo) / n``; a box ``[a, b]`` is referenced by the voxels ``floor((a - lo) / cell - EDGE)``
+to ``floor((b - lo) / cell + EDGE)`` (clamped to the grid): every voxel that the closed box
+overlaps, a box touching a voxel face counting for both voxels. An axis
 on which the grid is flat (zero extent) has one voxel.
 
 Cube-root criterion (Jansen; Cazals et al. 1995, 1.2.2): a grid for n objects has about n voxels.
@@ -37,6 +38,9 @@ from lightcuts.io import read_npz, save_npz
 ARRAY_KEYS = ("lo", "hi", "res", "voxel0", "level", "vox_items", "item_refs", "vox_subs", "sub_refs")
 #: An axis shorter than this fraction of the longest one gets one voxel (a flat box).
 FLAT = 1e-3
+#: Voxel fraction within which a box's end counts as on a boundary (both neighbours reference it,
+#: so a hit exactly on a voxel face is found from either side).
+EDGE = 1e-9
 
 
 @dataclass(frozen=True)
@@ -166,9 +170,10 @@ def cube_root_res(lo, hi, n):
 @njit(cache=True)
 def _range(a, b, lo, n, inv):
     """Voxel range [i0, i1] along one axis of a grid (lo, n voxels, inv = n / extent or 0) that the
-    closed interval [a, b] overlaps, clamped to the grid."""
-    i0 = int(np.floor((a - lo) * inv))
-    i1 = int(np.floor((b - lo) * inv))
+    closed interval [a, b] overlaps, clamped to the grid; an end within EDGE of a voxel boundary
+    counts for the voxels on both sides."""
+    i0 = int(np.floor((a - lo) * inv - EDGE))
+    i1 = int(np.floor((b - lo) * inv + EDGE))
     return min(max(i0, 0), n - 1), min(max(i1, 0), n - 1)
 
 
