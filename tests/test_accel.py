@@ -23,7 +23,7 @@ from lightcuts.accel.embree_kernels import (PACKET_FLOATS, lane_occluded, new_ra
                                            packet_occluded, packet_set_ray, ray_intersect, ray_occluded)
 from lightcuts.errors import LightcutsError
 
-CASTERS = ["embree", "embreex", "bvh-sah"]
+CASTERS = ["embree", "embreex", "bvh-sah", "bvh-agglomerative", "bvh-agglomerative-heap"]
 
 # Two parallel unit right triangles: prim 0 in the plane z = 0, prim 1 in z = 2, same (x, y) footprint.
 TWO_TRIANGLES = (

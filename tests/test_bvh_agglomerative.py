@@ -8,8 +8,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from lightcuts.accel.bvh import triangle_boxes
 from lightcuts.accel.bvh_agglomerative import (bvh_agglomerative, bvh_agglomerative_heap, bvh_agglomerative_stats,
-                                               bvh_greedy_reference, triangle_boxes)
+                                               bvh_greedy_reference)
 from lightcuts.cluster.agglomerate import morton_order
 from lightcuts.cluster.dissimilarity import SURFACE_AREA
 from lightcuts.cluster.kd_build import kd_build, kd_new
@@ -182,7 +183,9 @@ def test_public_functions_on_a_mesh_and_bad_input():
         check_topology(*build(lo, hi), 29)
         left, right, prim, root = build(lo[:1], hi[:1])
         assert root == 0 and left[0] == right[0] == -1 and prim[0] == 0
+        left, right, prim, root = build(lo[:0], hi[:0])  # an empty scene
+        assert root == -1 and len(left) == len(right) == len(prim) == 0
     nan_lo = np.where(np.arange(29)[:, None] == 3, np.nan, lo)
-    for bad_lo, bad_hi in [(lo, hi[:-1]), (lo[:0], hi[:0]), (nan_lo, hi), (hi + 1, hi), (lo[:, :2], hi[:, :2])]:
+    for bad_lo, bad_hi in [(lo, hi[:-1]), (nan_lo, hi), (hi + 1, hi), (lo[:, :2], hi[:, :2])]:
         with pytest.raises(LightcutsError, match="bvh-agglomerative"):
             bvh_agglomerative(bad_lo, bad_hi)

@@ -28,21 +28,12 @@ from lightcuts.errors import LightcutsError
 from lightcuts.limits import MAX_COORD
 
 
-def triangle_boxes(vertices, faces):
-    """``(lo, hi)``: (F, 3) float64 the bounding box of each triangle of a mesh (vertices (V, 3),
-    faces (F, 3) vertex indices)."""
-    tri = np.asarray(vertices, np.float64)[np.asarray(faces, np.int64)]
-    return np.ascontiguousarray(tri.min(axis=1)), np.ascontiguousarray(tri.max(axis=1))
-
-
 def _boxes(lo, hi, name: str):
     """lo, hi as C-contiguous float64 (F, 3), checked (one-line LightcutsError naming ``name``)."""
     lo = np.ascontiguousarray(lo, np.float64)
     hi = np.ascontiguousarray(hi, np.float64)
     if lo.ndim != 2 or lo.shape[1:] != (3,) or hi.shape != lo.shape:
         raise LightcutsError(f"{name}: box corners must be two (F, 3) arrays, got {lo.shape} and {hi.shape}")
-    if len(lo) == 0:
-        raise LightcutsError(f"{name}: no triangles")
     if not (np.all(np.abs(lo) <= MAX_COORD) and np.all(np.abs(hi) <= MAX_COORD)):
         raise LightcutsError(f"{name}: a box corner is not finite or exceeds {MAX_COORD:g} in magnitude")
     if np.any(lo > hi):
@@ -61,6 +52,9 @@ def bvh_agglomerative_stats(lo, hi, heap: bool = False, leafsize: int = LEAF_SIZ
     name = "bvh-agglomerative-heap" if heap else "bvh-agglomerative"
     lo, hi = _boxes(lo, hi, name)
     n = len(lo)
+    if n == 0:  # an empty scene: an empty topology, as the binned-SAH builder gives
+        empty = np.zeros(0, np.int32)
+        return empty, empty.copy(), empty.copy(), -1, {}
     return agglomerate(lo, hi, np.zeros((n, 3)), np.zeros(n), SURFACE_AREA, False, False, 0.0, heap=heap,
                        leafsize=leafsize, parallel_min=parallel_min,
                        what=(name, "check the triangles' coordinates"))

@@ -4,7 +4,10 @@ Each caster name pairs :class:`BVHCaster` with one topology builder, a function
 ``builder(lo (F,3) float64, hi (F,3) float64) -> (left, right, prim, root)`` over the triangles'
 boxes in the light-tree builders' convention (lightcuts.accel.bvh). :func:`register_bvh_caster` is
 the hook: ``bvh-sah`` is the binned SAH builder (lightcuts.accel.bvh_build); another clustering
-registers the same class under its own name with ``register_bvh_caster(name, builder)``. All are
+registers the same class under its own name with ``register_bvh_caster(name, builder)``;
+``bvh-agglomerative`` and ``bvh-agglomerative-heap`` are the 2008 paper's locally-ordered (Fig. 4)
+and heap (Fig. 3) clusterings with the surface area of the union's box as the dissimilarity
+(lightcuts.accel.bvh_agglomerative). All are
 kernel-callable (:attr:`BVHCaster.kernel_caster`), so they render, trace particles and render the
 reference like ``embree``.
 """
@@ -14,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from lightcuts.accel.base import KernelCaster, RayCaster, check_mesh, check_rays
+from lightcuts.accel.bvh_agglomerative import bvh_agglomerative, bvh_agglomerative_heap
 from lightcuts.accel.bvh import FlatBVH, from_topology, triangle_boxes
 from lightcuts.accel.bvh_build import build_binned_sah
 from lightcuts.accel.registry import RAY_CASTERS
@@ -114,3 +118,9 @@ def register_bvh_caster(name: str, builder, description: str, replace: bool = Fa
 
 register_bvh_caster("bvh-sah", build_binned_sah,
                     "numba BVH, binned SAH (Wald 2007: longest centroid axis, 16 bins), one triangle per leaf")
+register_bvh_caster("bvh-agglomerative", bvh_agglomerative,
+                    "numba BVH, locally-ordered agglomerative clustering (Walter et al. 2008, Fig. 4), "
+                    "d(A, B) = surface area of the box of A u B, one triangle per leaf")
+register_bvh_caster("bvh-agglomerative-heap", bvh_agglomerative_heap,
+                    "numba BVH, heap-based agglomerative clustering (Walter et al. 2008, Fig. 3), "
+                    "d(A, B) = surface area of the box of A u B, one triangle per leaf")
