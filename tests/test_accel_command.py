@@ -38,3 +38,28 @@ def test_casters_side_by_side_and_a_wrong_one_is_counted(tmp_path, scratch_regis
     assert 0.3 * 16 * w * h < rows[2]["shadow_mismatch"]
     table = (out / "table.md").read_text()
     assert "| embreex | 38 |" in table and "E(cost)" not in table  # no caster here reports SAH statistics
+
+
+def test_rooms_sweep(tmp_path):
+    out = tmp_path / "sweep"
+    assert main(["accel", str(ROOT / "configs/rooms.yaml"), "--sweep", "rooms", "--rooms", "1,2", "--casters",
+                 "embree,hug,recursive-grid-50,recursive-grid-150", "--out", str(out), "--set",
+                 "scene.procedural.triangles=12000", *SMALL]) == 0
+    report = json.loads((out / "report.json").read_text())
+    rows = report["rows"]
+    assert [(r["rooms"], r["caster"]) for r in rows] == [
+        (n, c) for n in (1, 2) for c in ("embree", "hug", "recursive-grid-50", "recursive-grid-150")]
+    one, two = (next(r for r in rows if r["rooms"] == n and r["caster"] == "hug") for n in (1, 2))
+    assert 1.8 < two["triangles"] / one["triangles"] < 2.2 and two["memory_bytes"] > one["memory_bytes"]
+    assert all(r["eye_mismatch"] <= 2 for r in rows)  # the grids answer the eye rays as Embree does
+    table = (out / "table.md").read_text()
+    assert "HUG memory / recursive-grid-50" in table and table.count("| hug |") == 3
+    assert (out / "sweep.png").read_bytes()[:4] == b"\x89PNG" and (out / "sweep.csv").is_file()
+
+
+def test_sweep_needs_a_rooms_scene(tmp_path):
+    from conftest import cli_recording_work
+
+    rc, calls, err = cli_recording_work(["accel", str(ROOT / "configs/cornell.yaml"), "--sweep", "rooms",
+                                         "--out", str(tmp_path / "s")], tmp_path)
+    assert rc == 2 and calls == [] and len(err.strip().splitlines()) == 1 and "not a rooms scene" in err

@@ -28,7 +28,12 @@ from lightcuts.errors import LightcutsError
 
 #: Eye rays per pixel of the shadows image, each with one shadow ray.
 SHADOW_SPP = 16
-ALLOWED = ("table.md", "table.csv", "report.json")
+ALLOWED = ("table.md", "table.csv", "report.json", "sweep.csv", "sweep.png")
+#: Room counts of ``--sweep rooms``.
+SWEEP_ROOMS = "1,2,4,6,8"
+#: The casters of ``--sweep rooms`` by default: the 1995 paper's structures, the BVHs and Embree.
+SWEEP_CASTERS = ("embree", "hug", "grid", "recursive-grid-50", "recursive-grid-100", "recursive-grid-150",
+                 "octree-50", "octree-100", "octree-150", "bvh-agglomerative", "bvh-agglomerative-heap", "bvh-sah")
 
 
 def add_parser(sub) -> None:
@@ -38,6 +43,10 @@ def add_parser(sub) -> None:
                    help="comma-separated ray casters (default: every kernel-callable caster, embree first)")
     p.add_argument("--repeats", type=int, default=3, help="timed runs of each image (median reported)")
     p.add_argument("--out", default=None, help="output folder (default renders/<name>/accel)")
+    p.add_argument("--sweep", choices=("rooms",), default=None,
+                   help="rooms: the study on the config's rooms scene at every --rooms count (the 1995 paper's "
+                        "growing scenes), with time and memory plotted against triangles")
+    p.add_argument("--rooms", default=SWEEP_ROOMS, help=f"room counts of --sweep rooms (default {SWEEP_ROOMS})")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     add_set(p)
     p.set_defaults(func=run)
@@ -75,10 +84,18 @@ def run_accel(args) -> dict:
     cfg = load_config(args.config, args.overrides)
     if args.repeats < 1:
         raise LightcutsError(f"--repeats {args.repeats}: must be at least 1")
-    entries = resolve_casters(args.casters)
+    sweep = getattr(args, "sweep", None)
+    entries = resolve_casters(args.casters if args.casters is not None or sweep is None else ",".join(SWEEP_CASTERS))
     plan = plan_run(cfg)
+    if sweep == "rooms":
+        parse_counts(args.rooms)
+        if cfg.scene.procedural is None or cfg.scene.procedural.type != "rooms":
+            raise LightcutsError(f"--sweep rooms: {args.config} is not a rooms scene (scene.procedural.type: rooms, "
+                                 "e.g. configs/rooms.yaml)")
     out = check_output_dir(Path(args.out) if args.out else Path("renders") / cfg.name / "accel",
                            "--out" if args.out else "name", ALLOWED)
+    if sweep == "rooms":
+        return _run_sweep(args, cfg, entries, out)
     return _run(args, cfg, plan, entries, out)
 
 
@@ -124,22 +141,25 @@ def _median_seconds(fn, repeats: int) -> tuple[float, object]:
 
 
 def _warm(entry) -> None:
-    """Load (or compile) a caster's kernels on a one-triangle mesh, untimed."""
+    """Load (or compile) a caster's kernels, untimed, on a small mesh with objects of several sizes
+    (so that structures with levels, like the HUG's, take every path of their build and traversal)."""
     from lightcuts.accel.registry import make_caster
 
-    v = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]])
-    c = make_caster((v, np.array([[0, 1, 2]])), entry)
-    o, d = np.array([[0.2, 0.2, 1.0]]), np.array([[0.0, 0, -1]])
+    rng = np.random.default_rng(0)
+    centres = rng.uniform(-1, 1, (300, 1, 3))
+    sizes = np.repeat([0.5, 0.05, 0.005], 100)[:, None, None]
+    v = (centres + sizes * rng.normal(size=(300, 3, 3))).reshape(-1, 3)
+    f = np.arange(len(v)).reshape(-1, 3)
+    c = make_caster((v, f), entry)
+    o, d = rng.uniform(-2, 2, (64, 3)), rng.normal(size=(64, 3))
     c.intersect(o, d, 0.0, np.inf)
     c.occluded(o, d, 0.0, np.inf)
     getattr(c, "close", lambda: None)()
 
 
-def _run(args, cfg, plan, entries, out: Path) -> dict:
+def measure(args, cfg, plan, entries) -> tuple[list[dict], object]:
+    """(rows, scene): every caster of ``entries`` built and timed on the config's scene."""
     from lightcuts.accel.registry import make_caster
-    from lightcuts.io import output_set, save_json
-    from lightcuts.report.accel import format_markdown, write_tables
-    from lightcuts.report.compare import machine
 
     rays = scene_rays(cfg, plan)
     scene = rays["scene"]
@@ -152,6 +172,9 @@ def _run(args, cfg, plan, entries, out: Path) -> dict:
             caster = make_caster(scene, entry)
             build = time.perf_counter() - t0
             stats = dict(caster.stats()) if hasattr(caster, "stats") else {}
+            if "build_s" in stats:  # the caster's own timing of its structure alone
+                stats["structure_build_s"] = stats.pop("build_s")
+            stats.pop("caster", None)
             eye_s, (_, eye_prim) = _median_seconds(lambda: caster.intersect(*rays["eye"], 0.0, np.inf), args.repeats)
 
             def shadows():
@@ -176,7 +199,20 @@ def _run(args, cfg, plan, entries, out: Path) -> dict:
     for r in rows:
         r["eye_vs_first"] = r["eye_s"] / base["eye_s"]
         r["shadows_vs_first"] = r["shadows_s"] / base["shadows_s"]
-    title = f"{cfg.name}: {scene.n_faces:,} triangles, {scene.camera.width}x{scene.camera.height}"
+    return rows, scene
+
+
+def _title(cfg, scene) -> str:
+    return f"{cfg.name}: {scene.n_faces:,} triangles, {scene.camera.width}x{scene.camera.height}"
+
+
+def _run(args, cfg, plan, entries, out: Path) -> dict:
+    from lightcuts.io import output_set, save_json
+    from lightcuts.report.accel import format_markdown, write_tables
+    from lightcuts.report.compare import machine
+
+    rows, scene = measure(args, cfg, plan, entries)
+    title = _title(cfg, scene)
     report = {"config": str(Path(args.config)), "name": cfg.name, "seed": cfg.seed,
               "settings": cfg.model_dump(mode="json"), "machine": machine(), "repeats": args.repeats,
               "shadow_spp": SHADOW_SPP, "rows": rows}
@@ -186,3 +222,47 @@ def _run(args, cfg, plan, entries, out: Path) -> dict:
     print(format_markdown(rows, title), end="")
     print(f"-> {out}")
     return report
+
+
+def _run_sweep(args, cfg, entries, out: Path) -> dict:
+    """The 1995 paper's growing scenes: the study at every ``--rooms`` count of a ``rooms`` scene."""
+    from lightcuts.commands.plan import plan_run
+    from lightcuts.config import load_config
+    from lightcuts.io import atomic_path, output_set, save_csv, save_json
+    from lightcuts.report.accel import format_markdown, format_sweep, plot_sweep
+    from lightcuts.report.compare import machine
+
+    counts = parse_counts(args.rooms)
+    tables, rows = [], []
+    for n in counts:
+        cfg_n = load_config(args.config, list(args.overrides) + [f"scene.procedural.rooms={n}"])
+        got, scene = measure(args, cfg_n, plan_run(cfg_n), entries)
+        for r in got:
+            r["rooms"] = n
+        rows += got
+        tables.append(format_markdown(got, f"{n} room{'s' if n > 1 else ''}: " + _title(cfg_n, scene)))
+    summary = format_sweep(rows)
+    report = {"config": str(Path(args.config)), "name": cfg.name, "seed": cfg.seed, "sweep": "rooms",
+              "rooms": counts, "settings": cfg.model_dump(mode="json"), "machine": machine(),
+              "repeats": args.repeats, "shadow_spp": SHADOW_SPP, "rows": rows}
+    with output_set(out) as tmp:
+        with atomic_path(tmp / "table.md") as path:
+            path.write_text(summary + "\n" + "\n".join(tables))
+        keys = list(dict.fromkeys(k for r in rows for k in r))
+        save_csv(tmp / "sweep.csv", [{k: r.get(k) for k in keys} for r in rows], keys)
+        plot_sweep(tmp / "sweep.png", rows, f"{cfg.name}: growing scenes ({', '.join(map(str, counts))} rooms)")
+        save_json(tmp / "report.json", report)
+    print(summary, end="")
+    print(f"-> {out}")
+    return report
+
+
+def parse_counts(text: str) -> list[int]:
+    """``"1,2,4"`` -> [1, 2, 4]; LightcutsError for anything but positive integers."""
+    try:
+        counts = [int(v) for v in str(text).replace(" ", "").split(",") if v]
+    except ValueError:
+        counts = []
+    if not counts or min(counts) < 1:
+        raise LightcutsError(f"--rooms {text!r}: expected comma-separated positive integers")
+    return sorted(set(counts))

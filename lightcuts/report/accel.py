@@ -13,6 +13,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from lightcuts.io import atomic_path, save_csv
 
 #: (key, Markdown header, format).
@@ -65,3 +67,62 @@ def write_tables(folder: Path, rows: list[dict], title: str) -> None:
         tmp.write_text(format_markdown(rows, title))
     keys = list(dict.fromkeys(k for r in rows for k in r))
     save_csv(folder / "table.csv", [{k: r.get(k) for k in keys} for r in rows], keys)
+
+
+def _series(rows: list[dict], caster: str, key: str) -> tuple[np.ndarray, np.ndarray]:
+    pts = [(r["triangles"], r[key]) for r in rows if r["caster"] == caster and r.get(key) is not None]
+    return np.array([p[0] for p in pts], float), np.array([p[1] for p in pts], float)
+
+
+def format_sweep(rows: list[dict]) -> str:
+    """The growing-scenes summary (the 1995 paper's Figs. 11-13) as Markdown: per caster, the fitted
+    exponents of eye-image time and memory against triangles, and at each size HUG's memory and eye
+    time over the recursive grid's (MAXP 50 and 150) where those rows exist."""
+    from lightcuts.report.scaling import fitted_exponent
+
+    casters = list(dict.fromkeys(r["caster"] for r in rows))
+    lines = ["# Growing scenes", "", "| Caster | Eye time ~ N^b | Memory ~ N^b | Largest scene: eye (s) | memory (MB) |",
+             "|---|---:|---:|---:|---:|"]
+    for c in casters:
+        n, eye = _series(rows, c, "eye_s")
+        _, mem = _series(rows, c, "memory_bytes")
+        last = [r for r in rows if r["caster"] == c][-1]
+        mem_last = "" if last.get("memory_bytes") is None else f"{last['memory_bytes'] / 2**20:.1f}"
+        mem_b = "" if len(mem) < 2 else f"{fitted_exponent(n, mem):.2f}"
+        lines.append(f"| {c} | {fitted_exponent(n, eye):.2f} | {mem_b} | {last['eye_s']:.3f} | {mem_last} |")
+    by = {(r["caster"], r["triangles"]): r for r in rows}
+    sizes = sorted({r["triangles"] for r in rows})
+    if all((c, n) in by for c in ("hug", "recursive-grid-50") for n in sizes):
+        lines += ["", "| Triangles | HUG memory / recursive-grid-50 | HUG eye / recursive-grid-50 | "
+                      "HUG eye / recursive-grid-150 |", "|---:|---:|---:|---:|"]
+        for n in sizes:
+            h, r50 = by[("hug", n)], by[("recursive-grid-50", n)]
+            r150 = by.get(("recursive-grid-150", n))
+            vs150 = "" if r150 is None else f"{h['eye_s'] / r150['eye_s']:.2f}"
+            lines.append(f"| {n:,} | {h['memory_bytes'] / r50['memory_bytes']:.2f} | {h['eye_s'] / r50['eye_s']:.2f} | "
+                         f"{vs150} |")
+    return "\n".join(lines) + "\n"
+
+
+def plot_sweep(path: Path, rows: list[dict], title: str) -> Path:
+    """Log-log eye-image time and memory against triangles per caster; written atomically."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(11.0, 4.6), dpi=110, layout="constrained")
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(1, 2)
+    for c in dict.fromkeys(r["caster"] for r in rows):
+        for ax, key, scale in ((axes[0], "eye_s", 1.0), (axes[1], "memory_bytes", 2.0 ** -20)):
+            n, y = _series(rows, c, key)
+            if len(n):
+                ax.loglog(n, y * scale, "o-", label=c)
+    for ax, label in zip(axes, ("eye image time (s)", "memory (MB)")):
+        ax.set_xlabel("triangles")
+        ax.set_ylabel(label)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize="x-small")
+    fig.suptitle(title)
+    with atomic_path(path, suffix=".png") as tmp:
+        fig.savefig(tmp, format="png")
+    return path
