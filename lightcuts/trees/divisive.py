@@ -127,9 +127,10 @@ def _points(position, normal, c):
 
 
 @njit(cache=True)
-def _visit(st_range, st_box, top, node, s, e, lo, hi, perm, left, right, light):
-    """Node ``node`` over rows s..e-1 (box lo, hi): a leaf is written at once, a larger range goes
-    on the stack at ``top``. Returns the new stack size."""
+def visit(st_range, st_box, top, node, s, e, lo, hi, perm, left, right, light):
+    """Node ``node`` over rows s..e-1 (box lo, hi: k-tuples, ``st_box`` rows 2k wide): a leaf is
+    written at once, a larger range goes on the stack at ``top``. Returns the new stack size.
+    (Shared with lightcuts.trees.saoh, whose boxes are 3D.)"""
     if e - s == 1:
         left[node] = -1
         right[node] = -1
@@ -138,9 +139,10 @@ def _visit(st_range, st_box, top, node, s, e, lo, hi, perm, left, right, light):
     st_range[top, 0] = node
     st_range[top, 1] = s
     st_range[top, 2] = e
-    for d in range(6):
+    k = len(lo)
+    for d in range(k):
         st_box[top, d] = lo[d]
-        st_box[top, 6 + d] = hi[d]
+        st_box[top, k + d] = hi[d]
     return top + 1
 
 
@@ -169,8 +171,8 @@ def _subtrees(pts, perm, tasks, boxes, cut, left, right, light):
     for j in range(tasks.shape[0]):
         lo = (boxes[j, 0], boxes[j, 1], boxes[j, 2], boxes[j, 3], boxes[j, 4], boxes[j, 5])
         hi = (boxes[j, 6], boxes[j, 7], boxes[j, 8], boxes[j, 9], boxes[j, 10], boxes[j, 11])
-        # np.int64(0), not 0: a literal would compile a second _visit.
-        top = _visit(st_range, st_box, np.int64(0), tasks[j, 0], tasks[j, 1], tasks[j, 2], lo, hi, perm,
+        # np.int64(0), not 0: a literal would compile a second visit.
+        top = visit(st_range, st_box, np.int64(0), tasks[j, 0], tasks[j, 1], tasks[j, 2], lo, hi, perm,
                      left, right, light)
         while top > 0:
             top -= 1
@@ -192,8 +194,8 @@ def _subtrees(pts, perm, tasks, boxes, cut, left, right, light):
             left[node] = a
             right[node] = b
             light[node] = -1
-            top = _visit(st_range, st_box, top, b, m, e, rlo, rhi, perm, left, right, light)
-            top = _visit(st_range, st_box, top, a, s, m, llo, lhi, perm, left, right, light)
+            top = visit(st_range, st_box, top, b, m, e, rlo, rhi, perm, left, right, light)
+            top = visit(st_range, st_box, top, a, s, m, llo, lhi, perm, left, right, light)
     return out_range[:n_out], out_box[:n_out]
 
 

@@ -43,9 +43,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from lightcuts.parallel import balance, run_all, threads_for
 from lightcuts.cluster.bounds import EMPTY_HI, EMPTY_LO, box_grow, points_box, row3
 from lightcuts.cluster.cones import cone_from_box
+from lightcuts.parallel import balance, run_all, threads_for
+from lightcuts.trees.divisive import visit
 from lightcuts.trees.registry import BUILDERS
 
 #: Slices per axis; BUCKETS - 1 candidate boundaries per axis.
@@ -230,24 +231,6 @@ def _split(pos, nrm, lum, perm, s, e, lo, hi, oriented, stats, acc, sides, costs
     return i, llo, lhi, rlo, rhi
 
 
-@njit(cache=True)
-def _push(st_range, st_box, top, node, s, e, lo, hi, perm, left, right, light):
-    """Node ``node`` over rows s..e-1 (box lo, hi): a leaf is written at once, a larger range goes
-    on the stack at ``top``. Returns the new stack size."""
-    if e - s == 1:
-        left[node] = -1
-        right[node] = -1
-        light[node] = perm[s]
-        return top
-    st_range[top, 0] = node
-    st_range[top, 1] = s
-    st_range[top, 2] = e
-    for d in range(3):
-        st_box[top, d] = lo[d]
-        st_box[top, 3 + d] = hi[d]
-    return top + 1
-
-
 @njit(cache=True, nogil=True)
 def _subtrees(pos, nrm, lum, perm, oriented, tasks, boxes, cut, left, right, light):
     """Build the subtrees of ``tasks`` (rows: node, s, e; ``boxes`` rows: their lo, hi) into left,
@@ -267,7 +250,7 @@ def _subtrees(pos, nrm, lum, perm, oriented, tasks, boxes, cut, left, right, lig
     sides = np.empty((2, BUCKETS - 1))
     costs = np.empty((3, BUCKETS - 1))
     for j in range(tasks.shape[0]):
-        top = _push(st_range, st_box, np.int64(0), tasks[j, 0], tasks[j, 1], tasks[j, 2],
+        top = visit(st_range, st_box, np.int64(0), tasks[j, 0], tasks[j, 1], tasks[j, 2],
                     row3(boxes, j, 0), row3(boxes, j, 3), perm, left, right, light)
         while top > 0:
             top -= 1
@@ -288,8 +271,8 @@ def _subtrees(pos, nrm, lum, perm, oriented, tasks, boxes, cut, left, right, lig
             left[node] = a
             right[node] = b
             light[node] = -1
-            top = _push(st_range, st_box, top, b, m, e, rlo, rhi, perm, left, right, light)
-            top = _push(st_range, st_box, top, a, s, m, llo, lhi, perm, left, right, light)
+            top = visit(st_range, st_box, top, b, m, e, rlo, rhi, perm, left, right, light)
+            top = visit(st_range, st_box, top, a, s, m, llo, lhi, perm, left, right, light)
     return out_range[:n_out], out_box[:n_out]
 
 
