@@ -22,3 +22,35 @@ def progress_bar(total: int, desc: str, disable: bool = False, unit: str = "row"
 
     return tqdm(total=total, desc=desc, unit=unit, disable=disable, file=sys.stderr, leave=False,
                 dynamic_ncols=True)
+
+
+def render_settings(cfg, camera, envmap=None) -> dict:
+    """The keyword arguments of ``render_image`` / ``render_reference`` that the config sets (all but
+    eps and max_cut, which the reference does not take)."""
+    return dict(camera=camera, spp=cfg.render.spp, envmap=envmap, seed=cfg.seed, crop=cfg.render.crop,
+                clamp=cfg.render.clamp.enabled, clamp_min_distance=cfg.render.clamp.min_distance)
+
+
+def render_timed(cfg, scene, caster, lights: dict, trees: dict, envmap=None, desc: str = "lightcuts",
+                 no_progress: bool = False):
+    """The config's lightcuts image: ``(result, seconds, load_seconds)``. The render kernel is loaded
+    (or compiled) on one pixel first, untimed in ``seconds`` (its time is ``load_seconds``), so that
+    ``seconds`` measures rendering; a progress bar ``desc`` counts rows."""
+    import time
+
+    from lightcuts.render.integrator import render_image
+
+    settings = render_settings(cfg, scene.camera, envmap)
+    crop = cfg.render.crop
+    x0, y0 = (0, 0) if crop is None else crop[:2]
+    rows = scene.camera.height if crop is None else crop[3] - crop[1]
+    t0 = time.perf_counter()
+    render_image(scene, caster, lights, trees, eps=cfg.render.eps, max_cut=cfg.render.max_cut,
+                 **{**settings, "crop": (x0, y0, x0 + 1, y0 + 1)})
+    load = time.perf_counter() - t0
+    with progress_bar(rows, desc, no_progress) as bar:
+        t0 = time.perf_counter()
+        result = render_image(scene, caster, lights, trees, eps=cfg.render.eps, max_cut=cfg.render.max_cut,
+                              progress=bar.update, **settings)
+        seconds = time.perf_counter() - t0
+    return result, seconds, load

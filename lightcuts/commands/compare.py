@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lightcuts.commands.common import add_set, progress_bar
+from lightcuts.commands.common import add_set, progress_bar, render_settings, render_timed
 from lightcuts.errors import LightcutsError
 
 #: The default rows: the paper's four builders and today's top-down SAOH.
@@ -155,11 +155,12 @@ def run_compare(args) -> dict:
     rows = resolve_rows(args, cfg)
     plans = [plan_run(cfg, render=True, tree=spec) for _, spec in rows]
     labels = [label for label, _ in rows]
-    diff = labels[:2] if args.diff is None else _names(args.diff, "--diff")
-    if len(diff) != 2 or any(d not in labels for d in diff) or diff[0] == diff[1]:
-        if args.diff is not None:
+    if args.diff is None:
+        diff = tuple(labels[:2]) if len(labels) >= 2 else None
+    else:
+        diff = tuple(_names(args.diff, "--diff"))
+        if len(diff) != 2 or any(d not in labels for d in diff):
             raise LightcutsError(f"--diff {args.diff!r}: expected two different rows of {', '.join(labels)}")
-    diff = tuple(diff) if len(diff) == 2 and diff[0] != diff[1] else None
     out = check_output_dir(Path(args.out) if args.out else Path("renders") / cfg.name / "compare",
                            "--out" if args.out else "name", ALLOWED)
     width, height = image_size(cfg)
@@ -190,11 +191,6 @@ class _Shared:
             self.seconds = time.perf_counter() - t0
             self.ready = True
         return self
-
-
-def _render_kwargs(cfg, shared) -> dict:
-    return dict(camera=shared.scene.camera, spp=cfg.render.spp, envmap=shared.envmap, seed=cfg.seed,
-                clamp=cfg.render.clamp.enabled, clamp_min_distance=cfg.render.clamp.min_distance)
 
 
 def _run(args, cfg, plans, labels, out: Path, pixels, diff) -> dict:
@@ -231,8 +227,8 @@ def _reference(args, cfg, shared, store: Path, pixels) -> dict:
     with progress_bar(len(pixels), f"{cfg.name}: reference on {len(pixels)} pixels", args.no_progress,
                       unit="px") as bar:
         t0 = time.perf_counter()
-        ref = render_reference(s.scene, s.caster, s.lights, progress=bar.update, pixels=pixels,
-                               **_render_kwargs(cfg, s))
+        settings = {**render_settings(cfg, s.scene.camera, s.envmap), "crop": None}
+        ref = render_reference(s.scene, s.caster, s.lights, progress=bar.update, pixels=pixels, **settings)
         seconds = time.perf_counter() - t0
     image = ref.image[:, 0]
     store.mkdir(parents=True, exist_ok=True)
@@ -247,7 +243,6 @@ def _row(args, cfg, plan, label, shared, store: Path, pixels, reference) -> dict
     from lightcuts.commands.warmup import finish_warmup
     from lightcuts.io import save_npz
     from lightcuts.lights.lightset import LightSet
-    from lightcuts.render.integrator import render_image
     from lightcuts.report.compare import file_label
     from lightcuts.report.images import relative_error
     from lightcuts.trees.build import build_tree
@@ -271,19 +266,12 @@ def _row(args, cfg, plan, label, shared, store: Path, pixels, reference) -> dict
     t_build = time.perf_counter() - t0
     used = tree_meta(trees)
 
-    kwargs = _render_kwargs(cfg, s)
-    crop = cfg.render.crop
-    x0, y0 = (0, 0) if crop is None else crop[:2]
     finish_warmup(s.warmup)
     s.warmup = None
-    render_image(s.scene, s.caster, s.lights, trees, eps=cfg.render.eps, max_cut=cfg.render.max_cut,
-                 crop=(x0, y0, x0 + 1, y0 + 1), **kwargs)
-    rows = s.scene.camera.height if crop is None else crop[3] - crop[1]
-    with progress_bar(rows, f"{cfg.name}: {label}", args.no_progress) as bar:
-        t0 = time.perf_counter()
-        result = render_image(s.scene, s.caster, s.lights, trees, eps=cfg.render.eps, max_cut=cfg.render.max_cut,
-                              crop=crop, progress=bar.update, **kwargs)
-        t_image = time.perf_counter() - t0
+    result, t_image, _ = render_timed(cfg, s.scene, s.caster, s.lights, trees, s.envmap, f"{cfg.name}: {label}",
+                                      args.no_progress)
+    crop = cfg.render.crop
+    x0, y0 = (0, 0) if crop is None else crop[:2]
 
     n_pixels = result.cut_size.size
     row = {"label": label, "builder": used["builder"], "metric": used["metric"], "c": used["c"],

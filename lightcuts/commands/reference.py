@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lightcuts.commands.common import add_set, progress_bar
+from lightcuts.commands.common import add_set
 from lightcuts.config import load_config
 from lightcuts.errors import LightcutsError
 
@@ -75,7 +75,7 @@ def run_reference(args) -> dict:
 def _lightcuts_image(args, cfg, plan, scene, envmap, warmup: list) -> tuple[np.ndarray, dict]:
     """lightcuts' image of the run and its figures (lights, seconds)."""
     from lightcuts.commands.warmup import finish_warmup, start_render_warmup
-    from lightcuts.render.integrator import render_image
+    from lightcuts.commands.common import render_timed
 
     t0 = time.perf_counter()
     if plan.caster.name == "embree":
@@ -84,18 +84,9 @@ def _lightcuts_image(args, cfg, plan, scene, envmap, warmup: list) -> tuple[np.n
         light_sets = plan.lights(scene, caster, envmap)
         trees = plan.trees(light_sets)
         t_pre = time.perf_counter() - t0
-        common = dict(camera=scene.camera, spp=cfg.render.spp, envmap=envmap, seed=cfg.seed, eps=cfg.render.eps,
-                      max_cut=cfg.render.max_cut, clamp=cfg.render.clamp.enabled,
-                      clamp_min_distance=cfg.render.clamp.min_distance)
         finish_warmup(warmup[0] if warmup else None)
-        x0, y0 = (0, 0) if cfg.render.crop is None else cfg.render.crop[:2]
-        render_image(scene, caster, light_sets, trees, crop=(x0, y0, x0 + 1, y0 + 1), **common)  # load kernels
-        rows = scene.camera.height if cfg.render.crop is None else cfg.render.crop[3] - cfg.render.crop[1]
-        with progress_bar(rows, f"{cfg.name}: lightcuts", args.no_progress) as bar:
-            t0 = time.perf_counter()
-            result = render_image(scene, caster, light_sets, trees, crop=cfg.render.crop, progress=bar.update,
-                                  **common)
-            t_render = time.perf_counter() - t0
+        result, t_render, _ = render_timed(cfg, scene, caster, light_sets, trees, envmap, f"{cfg.name}: lightcuts",
+                                           args.no_progress)
     return result.image, {"lights": {typ: len(ls) for typ, ls in light_sets.items()},
                           "lights_indirect": int(sum(int(ls.indirect.sum()) for ls in light_sets.values())),
                           "eps": cfg.render.eps, "spp": cfg.render.spp, "preprocess_seconds": t_pre,

@@ -12,7 +12,7 @@ import platform
 import time
 from pathlib import Path
 
-from lightcuts.commands.common import add_set, progress_bar
+from lightcuts.commands.common import add_set, progress_bar, render_settings, render_timed
 from lightcuts.config import load_config
 
 
@@ -54,7 +54,7 @@ def _run(args, cfg, plan, out_dir: Path, warmup: list) -> dict:
     from lightcuts.commands.plan import tree_meta
     from lightcuts.commands.warmup import finish_warmup, start_render_warmup
     from lightcuts.io import SUBRUN_FOLDERS, output_set, save_json
-    from lightcuts.render.integrator import render_image, render_reference
+    from lightcuts.render.integrator import render_reference
     from lightcuts.report.images import relative_error, write_exr, write_heatmap, write_png
 
     t0 = time.perf_counter()
@@ -71,23 +71,15 @@ def _run(args, cfg, plan, out_dir: Path, warmup: list) -> dict:
     t_build = time.perf_counter() - t0
     used = tree_meta(trees)
 
-    cam = scene.camera
-    rows = cam.height if cfg.render.crop is None else cfg.render.crop[3] - cfg.render.crop[1]
-    common = dict(camera=cam, spp=cfg.render.spp, envmap=envmap, seed=cfg.seed, crop=cfg.render.crop,
-                  clamp=cfg.render.clamp.enabled, clamp_min_distance=cfg.render.clamp.min_distance)
-    # Load (or compile) the kernels on one pixel first, so that render_seconds and the reference's
-    # speed-up measure rendering; the wait for numba is reported on its own.
+    common = render_settings(cfg, scene.camera, envmap)
+    # The wait for numba (the child compiling the render kernel, then loading it) is reported on its own.
     t0 = time.perf_counter()
-    finish_warmup(warmup[0] if warmup else None)  # the child compiling the render kernel: then loaded
-    x0, y0 = (0, 0) if cfg.render.crop is None else cfg.render.crop[:2]
-    render_image(scene, caster, light_sets, trees, eps=cfg.render.eps, max_cut=cfg.render.max_cut,
-                 **{**common, "crop": (x0, y0, x0 + 1, y0 + 1)})
-    t_jit = time.perf_counter() - t0
-    with progress_bar(rows, f"{cfg.name}: lightcuts", args.no_progress) as bar:
-        t0 = time.perf_counter()
-        result = render_image(scene, caster, light_sets, trees, eps=cfg.render.eps, max_cut=cfg.render.max_cut,
-                              progress=bar.update, **common)
-        t_render = time.perf_counter() - t0
+    finish_warmup(warmup[0] if warmup else None)
+    t_wait = time.perf_counter() - t0
+    result, t_render, t_load = render_timed(cfg, scene, caster, light_sets, trees, envmap, f"{cfg.name}: lightcuts",
+                                            args.no_progress)
+    t_jit = t_wait + t_load
+    rows = result.image.shape[0]
 
     n_pixels = result.image.shape[0] * result.image.shape[1]
     report = {

@@ -165,17 +165,9 @@ def run_scaling(args) -> list[dict]:
 def _render_stats(cfg, scene, caster, lights, tree) -> dict:
     """Average and largest cut, shadow rays per pixel and render seconds of the config's image
     lit by ``lights`` through ``tree``."""
-    from lightcuts.render.integrator import render_image
+    from lightcuts.commands.common import render_timed
 
-    crop = cfg.render.crop
-    kwargs = dict(camera=scene.camera, spp=cfg.render.spp, seed=cfg.seed, eps=cfg.render.eps,
-                  max_cut=cfg.render.max_cut, clamp=cfg.render.clamp.enabled,
-                  clamp_min_distance=cfg.render.clamp.min_distance)
-    x0, y0 = (0, 0) if crop is None else crop[:2]
-    sets, trees = {lights.type: lights}, {lights.type: tree}
-    render_image(scene, caster, sets, trees, crop=(x0, y0, x0 + 1, y0 + 1), **kwargs)  # loads the kernel
-    t0 = time.perf_counter()
-    result = render_image(scene, caster, sets, trees, crop=crop, **kwargs)
-    seconds = time.perf_counter() - t0
+    result, seconds, _ = render_timed(cfg, scene, caster, {lights.type: lights}, {lights.type: tree},
+                                      no_progress=True)
     return dict(cut_mean=float(result.cut_size.mean()), cut_max=float(result.cut_size.max()),
                 shadow_rays_per_pixel=result.shadow_rays / result.cut_size.size, render_s=seconds)
