@@ -12,9 +12,10 @@ from hypothesis import strategies as st
 from numba import njit
 
 from lightcuts.accel import RAY_CASTERS, make_caster
-from lightcuts.accel.grid_caster import GridCaster
+from lightcuts.accel.bvh import triangle_boxes
 from lightcuts.accel.bvh_kernels import ray_frame, watertight_t
-from lightcuts.accel.grids import GridForest, triangle_boxes
+from lightcuts.accel.grid_caster import GridCaster
+from lightcuts.accel.grids import GridForest
 from lightcuts.accel.hug import cluster3d, isolate, length_filter
 from lightcuts.errors import LightcutsError
 

@@ -15,8 +15,9 @@ import time
 import numpy as np
 
 from lightcuts.accel.base import KernelCaster, RayCaster, check_mesh, check_rays
+from lightcuts.accel.bvh import triangle_boxes
 from lightcuts.accel.grid_build import build_recursive, build_uniform
-from lightcuts.accel.grids import GridForest, grid_inv, triangle_boxes
+from lightcuts.accel.grids import GridForest
 from lightcuts.accel.hug import ALPHA, LEVELS, build_hug
 from lightcuts.accel.registry import RAY_CASTERS
 from lightcuts.errors import LightcutsError

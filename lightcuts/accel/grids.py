@@ -223,12 +223,6 @@ def fill_grids(glo, ghi, gres, item_start, items, blo, bhi):
     return voxel0, counts, refs
 
 
-def triangle_boxes(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Boxes of the triangles: lo, hi (F, 3) float64 (exact over the float32 vertices)."""
-    tri = vertices.astype(np.float64)[faces.astype(np.int64)]
-    return np.ascontiguousarray(tri.min(axis=1)), np.ascontiguousarray(tri.max(axis=1))
-
-
 def assemble(lo, hi, res, level, counts_items, refs, counts_subs, subs, n_faces, kind) -> GridForest:
     """A GridForest from per-voxel counts (V,) and reference lists in voxel order."""
     vox_items = np.zeros(len(counts_items) + 1, np.int64)

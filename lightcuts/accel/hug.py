@@ -26,7 +26,7 @@ import numpy as np
 from numba import njit
 
 from lightcuts.accel.grid_build import scene_box
-from lightcuts.accel.grids import GridForest, _range, assemble, cube_root_res, fill_grids, grid_inv
+from lightcuts.accel.grids import _range, assemble, cube_root_res, fill_grids, grid_inv
 
 #: The paper's defaults: three filter levels, alpha = 0.01.
 LEVELS = 3
