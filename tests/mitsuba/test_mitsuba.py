@@ -18,7 +18,7 @@ import pytest
 from lightcuts.lights.lightset import LUMINANCE
 from lightcuts.mitsuba.export import envmap_for_mitsuba, phong_alpha, phong_bsdf
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 CORNELL = ROOT / "configs" / "cornell.yaml"
 
 

@@ -22,7 +22,7 @@ from hypothesis import strategies as st
 
 from lightcuts.errors import LightcutsError
 
-ROOT = Path(__file__).parent.parent
+ROOT = Path(__file__).parents[2]
 BASE = {"name": "old", "scene": {"builtin": "cornell"}, "camera": {"resolution": [16, 16]},
         "lights": {"direct": {"count": 16}}}
 OLD_SET = {"image.exr": b"old exr", "image.png": b"old png", "cutsize.png": b"old heat",

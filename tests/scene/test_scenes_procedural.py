@@ -16,7 +16,7 @@ from lightcuts.scene.build import image_size, scene_from_config
 from lightcuts.scene.procedural import procedural_scene
 from lightcuts.scene.shapes import Curved, pose, resolutions
 
-ROOT = Path(__file__).parent.parent
+ROOT = Path(__file__).parents[2]
 SMALL = 12_000
 
 

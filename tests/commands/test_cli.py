@@ -9,7 +9,7 @@ import pytest
 
 from conftest import cli_recording_work
 
-ROOT = Path(__file__).parent.parent
+ROOT = Path(__file__).parents[2]
 
 
 def run_cli(*args, cwd):

@@ -7,7 +7,7 @@ import numpy as np
 
 from lightcuts.cli import main
 
-ROOT = Path(__file__).parent.parent
+ROOT = Path(__file__).parents[2]
 SMALL = ["--set", "camera.resolution=[24,20]", "--set", "lights.indirect.count=500", "--repeats", "1",
          "--no-progress"]
 

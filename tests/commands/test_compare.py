@@ -13,7 +13,7 @@ from lightcuts.commands.compare import sample_pixels
 from lightcuts.errors import LightcutsError
 from lightcuts.report.compare import cut_colours
 
-ROOT = Path(__file__).parent.parent
+ROOT = Path(__file__).parents[2]
 SMALL = ["--set", "camera.resolution=[40,40]", "--set", "lights.indirect.count=1500",
          "--set", "lights.direct.count=128"]
 BUILDERS = "agglomerative,divisive-6d,divisive-3d"
