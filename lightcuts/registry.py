@@ -112,6 +112,13 @@ class Resolved:
     def name(self) -> str:
         return self.entry.name
 
+    @property
+    def obj(self) -> Any:
+        return self.entry.obj
+
+    def trait(self, key: str, default=None):
+        return self.entry.trait(key, default)
+
     def record(self) -> dict:
         """For report.json: ``{"type": name, **params}``."""
         return {"type": self.entry.name, **self.params}
