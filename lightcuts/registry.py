@@ -53,7 +53,8 @@ class Param:
     type : ``int``, ``float``, ``bool`` or ``str`` (an int is accepted where a float is declared)
     default : the value when the config leaves it out; None: the plugin computes it (e.g. ``c``,
         scene diagonal / 16) and receives None
-    lo, hi : inclusive bounds for numbers; choices : the allowed values for strings
+    lo, hi : inclusive bounds for numbers; above : an exclusive lower bound (e.g. 0 for a positive
+        scale); choices : the allowed values for strings
     doc : one line for ``--help`` texts and the README
     """
 
@@ -63,6 +64,7 @@ class Param:
     hi: float | None = None
     choices: tuple | None = None
     doc: str = ""
+    above: float | None = None
 
     def check(self, value, key: str):
         """``value`` converted to the declared type; LightcutsError ``<key>: <problem>`` if it is not one."""
@@ -77,6 +79,8 @@ class Param:
             value = float(value)
             if not math.isfinite(value):
                 raise LightcutsError(f"{key}: {value} is not a finite number")
+        if self.above is not None and not value > self.above:
+            raise LightcutsError(f"{key}: {value} must be above {self.above:g}")
         if self.lo is not None and value < self.lo:
             raise LightcutsError(f"{key}: {value} is below the minimum {self.lo:g}")
         if self.hi is not None and value > self.hi:

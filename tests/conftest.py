@@ -35,11 +35,14 @@ def random_lights(n, light_type, seed=0, duplicates=False):
 
 @pytest.fixture
 def scratch_registries():
-    """Builders, metrics and ray casters registered in a test are forgotten after it."""
+    """Builders, metrics, ray casters, scene types and integrators registered in a test are forgotten
+    after it."""
     from lightcuts.accel import RAY_CASTERS
+    from lightcuts.render.integrators import INTEGRATORS
+    from lightcuts.scene.registry import SCENES
     from lightcuts.trees import BUILDERS, METRICS
 
-    with BUILDERS.scratch(), METRICS.scratch(), RAY_CASTERS.scratch():
+    with BUILDERS.scratch(), METRICS.scratch(), RAY_CASTERS.scratch(), SCENES.scratch(), INTEGRATORS.scratch():
         yield
 
 

@@ -23,6 +23,8 @@ from lightcuts.accel.bvh_kernels import ray_frame, watertight_t
 from lightcuts.accel.packets import mark_lane_occluded, packet_get_ray
 from lightcuts.errors import LightcutsError
 from lightcuts.registry import Registry, declare
+from lightcuts.render.integrators import INTEGRATORS
+from lightcuts.scene.registry import SCENES
 from lightcuts.trees import BUILDERS, METRICS, Metric, build_tree, register_metric, tree_spec, validate_tree
 from lightcuts.trees.metrics import metric_values
 
@@ -362,3 +364,149 @@ def test_the_recorder_sees_work(tmp_path):
     (tmp_path / "run.yaml").write_text(CONFIG)
     rc, calls, err = cli_recording_work(["tree", "run.yaml", "--out", "t.npz"], tmp_path)
     assert rc == 0 and calls == ["scene_from_config", "lights_from_config", "build_tree"], err
+
+
+# --------------------------------------------------------------------------------- scene types
+
+@pytest.mark.parametrize("name", SCENES.names())
+def test_scene_type_contract(name, tmp_path):
+    """Every scene type: declared parameters with defaults that pass their own checks, a
+    ``resolution`` trait equal to the built scene's camera, emitters, and the same bytes twice."""
+    from lightcuts.scene.loaders import load_mesh
+    from lightcuts.scene.registry import make_scene
+
+    entry = SCENES.entry(name)
+    for p, decl in entry.params.items():
+        assert decl.default is not None and decl.check(decl.default, p) == decl.default
+    params = {p: max(decl.lo, 10_000) for p, decl in entry.params.items() if p == "triangles"}
+    exhibits = offsets = []
+    if entry.trait("exhibits"):
+        obj = tmp_path / "t.obj"
+        obj.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n")
+        exhibits, offsets = [load_mesh(obj, 0.3, [0, 0, 0], [0, 0, 0], None)], [[0, 0, 0]]
+    scenes = [make_scene({"type": name, **params}, None, exhibits, offsets, name="s") for _ in range(2)]
+    cam = scenes[0].camera
+    assert (cam.width, cam.height) == tuple(entry.trait("resolution"))
+    assert len(scenes[0].emitters) > 0 and scenes[0].n_faces > 0
+    a, b = (s.save(tmp_path / f"{i}.npz").read_bytes() for i, s in enumerate(scenes))
+    assert a == b
+
+
+# --------------------------------------------------------------------------------- integrators
+
+@pytest.mark.parametrize("name", INTEGRATORS.names())
+def test_integrator_contract(name):
+    """Every integrator, called as the render path calls it with its declared defaults: an image of
+    the camera's size, finite and non-negative, and a cut size per pixel."""
+    from lightcuts.lights.direct import direct_lights
+    from lightcuts.scene.cornell import cornell_box
+
+    resolved = INTEGRATORS.resolve(name, "render.integrator")
+    scene = cornell_box()
+    scene.camera = type(scene.camera)(scene.camera.position, scene.camera.look_at, scene.camera.up,
+                                      scene.camera.fov, 12, 10)
+    lights = {"oriented": direct_lights(scene, 64, seed=1)}
+    trees = {t: build_tree(ls, builder="divisive-3d") for t, ls in lights.items()}
+    with make_caster(scene, "embree") as caster:
+        result = resolved.obj(scene, caster, lights, trees, camera=scene.camera, spp=1, eps=0.02, max_cut=1000,
+                              clamp=True, clamp_min_distance=0.05, envmap=None, seed=0, crop=None, progress=None,
+                              **resolved.params)
+    assert result.image.shape == (10, 12, 3) and np.all(np.isfinite(result.image)) and np.all(result.image >= 0)
+    assert result.image.sum() > 0 and result.cut_size.shape == (10, 12)
+
+
+def test_lightcuts_integrator_is_render_image():
+    from lightcuts.render.integrator import render_image
+    from lightcuts.scene.cornell import cornell_box
+    from lightcuts.lights.direct import direct_lights
+
+    scene = cornell_box()
+    lights = {"oriented": direct_lights(scene, 64, seed=1)}
+    trees = {t: build_tree(ls) for t, ls in lights.items()}
+    with make_caster(scene, "embree") as caster:
+        a = INTEGRATORS.get("lightcuts")(scene, caster, lights, trees, crop=(200, 200, 216, 216))
+        b = render_image(scene, caster, lights, trees, crop=(200, 200, 216, 216))
+    assert a.image.tobytes() == b.image.tobytes() and np.array_equal(a.cut_size, b.cut_size)
+
+
+# ------------------------------------------------------- one plugin shape: {type: NAME, param: value}
+
+UNDECLARED = [  # (config addition, the key the one-line error names), a plugin of each kind
+    ("tree: {builder: {type: agglomerative, leafsize: 4}}\n", "tree.builder.leafsize: builder 'agglomerative' has no"),
+    ("tree: {builder: {type: divisive-3d, c: 2}}\n", "tree.builder.c: builder 'divisive-3d' reads no c"),
+    ("render: {integrator: {type: lightcuts, bounces: 2}}\n",
+     "render.integrator.bounces: integrator 'lightcuts' has no parameter 'bounces'"),
+]
+
+
+@pytest.mark.parametrize("command", ["render", "tree"])
+@pytest.mark.parametrize("extra, message", UNDECLARED + [
+    ("scene: {procedural: {type: kitchen, rooms: 2}}\n", "scene.procedural.rooms: scene type 'kitchen' has no")])
+def test_undeclared_parameter_one_line_before_any_work(tmp_path, command, extra, message):
+    text = CONFIG + extra if extra.startswith(("tree", "render")) else CONFIG.replace(
+        "scene: {builtin: cornell}\n", extra)
+    (tmp_path / "run.yaml").write_text(text)
+    argv = [command, "run.yaml"] + (["--out", "t.npz"] if command == "tree" else [])
+    rc, calls, err = cli_recording_work(argv, tmp_path)
+    assert (rc, calls) == (2, []), err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"error: {message}"), err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.yaml"]
+
+
+@pytest.mark.parametrize("tree_section, message", [
+    ("{builder: {type: agglomerative, c: 2}, c: 3}", "tree.c: given twice, also as tree.builder.c"),
+    ("{builder: {type: agglomerative, metric: walter2005}, metric: walter2008}",
+     "tree.metric: given twice, also as tree.builder.metric"),
+    ("{builder: {type: agglomerative, c: 0}}", "tree.builder.c: 0.0 must be above 0"),
+    ("{builder: {type: agglomerative, metric: 3}}", "tree.builder.metric: expected str"),
+    ("{builder: {type: agglomerative, metric: nope}}", "tree.builder.metric: unknown metric 'nope'"),
+    ("{builder: {type: nope}}", "tree.builder: unknown builder 'nope'"),
+])
+def test_builder_mapping_errors_name_the_key(tmp_path, tree_section, message):
+    from lightcuts.commands.plan import plan_run
+    from lightcuts.config import load_config
+
+    (tmp_path / "run.yaml").write_text(CONFIG + f"tree: {tree_section}\n")
+    with pytest.raises(LightcutsError) as e:
+        plan_run(load_config(tmp_path / "run.yaml"))
+    assert str(e.value).startswith(message) and "\n" not in str(e.value), str(e.value)
+
+
+def test_builder_mapping_and_flat_form_give_the_same_tree(tmp_path):
+    """``tree.builder: {type: agglomerative, metric: walter2005, c: 2}`` and the flat keys write the
+    same tree file; a c of the default writes another."""
+    from lightcuts.cli import main
+
+    (tmp_path / "run.yaml").write_text(CONFIG)
+    forms = {"nested": ["--set", "tree.builder={type: agglomerative, metric: walter2005, c: 2.0}"],
+             "flat": ["--set", "tree.builder=agglomerative", "--set", "tree.metric=walter2005", "--set", "tree.c=2"],
+             "default": ["--set", "tree.builder={type: agglomerative, metric: walter2005}"]}
+    out = {}
+    for name, sets in forms.items():
+        assert main(["tree", str(tmp_path / "run.yaml"), "--out", str(tmp_path / f"{name}.npz"), *sets]) == 0
+        out[name] = (tmp_path / f"{name}.npz").read_bytes()
+    assert out["nested"] == out["flat"] != out["default"]
+
+
+def test_compare_rows_come_from_builder_traits():
+    from lightcuts.commands.compare import default_builders
+
+    rows = default_builders()
+    assert rows == ["agglomerative-heap", "agglomerative", "divisive-6d", "divisive-3d", "saoh"]
+    assert [b for b in BUILDERS.names() if BUILDERS.entry(b).trait("compare_baseline")] == ["divisive-6d"]
+    with BUILDERS.scratch():
+        BUILDERS.register("test-late", lambda *a: None, reads=(), compare_row=9)
+        assert default_builders() == rows + ["test-late"]
+
+
+def test_plan_records_every_plugin(tmp_path):
+    from lightcuts.commands.plan import plan_run
+    from lightcuts.config import load_config
+
+    (tmp_path / "run.yaml").write_text("scene: {procedural: {type: rooms, rooms: 2}}\n"
+                                       "tree: {builder: {type: divisive-6d, c: 0.5}}\n")
+    assert plan_run(load_config(tmp_path / "run.yaml")).record() == {
+        "scene": {"type": "rooms", "rooms": 2, "seed": 0, "triangles": 100_000},
+        "builder": {"type": "divisive-6d", "c": 0.5},
+        "integrator": {"type": "lightcuts"}}

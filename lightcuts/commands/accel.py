@@ -89,7 +89,7 @@ def run_accel(args) -> dict:
     plan = plan_run(cfg)
     if sweep == "rooms":
         parse_counts(args.rooms)
-        if cfg.scene.procedural is None or cfg.scene.procedural.type != "rooms":
+        if plan.scene_type is None or "rooms" not in plan.scene_type.params:
             raise LightcutsError(f"--sweep rooms: {args.config} is not a rooms scene (scene.procedural.type: rooms, "
                                  "e.g. configs/rooms.yaml)")
     out = check_output_dir(Path(args.out) if args.out else Path("renders") / cfg.name / "accel",

@@ -30,8 +30,6 @@ import numpy as np
 from lightcuts.commands.common import add_set, progress_bar, render_settings, render_timed
 from lightcuts.errors import LightcutsError
 
-#: The default rows: the paper's four builders and today's top-down SAOH.
-DEFAULT_BUILDERS = ("agglomerative-heap", "agglomerative", "divisive-6d", "divisive-3d", "saoh")
 DEFAULT_PIXELS = 1024
 #: Samples per pixel of the long Mitsuba path-traced render both equal-time images are measured against.
 DEFAULT_MITSUBA_SPP = 1024
@@ -45,7 +43,8 @@ _WARM_LIGHTS = 64
 def add_parser(sub) -> None:
     p = sub.add_parser("compare", help="render once per builder: the 2008 paper's Fig. 8 table, cut-size maps")
     p.add_argument("config")
-    p.add_argument("--builders", default=None, help=f"comma-separated builders (default {','.join(DEFAULT_BUILDERS)})")
+    p.add_argument("--builders", default=None,
+                   help="comma-separated builders (default: the paper's four and saoh, see default_builders)")
     p.add_argument("--metrics", default=None,
                    help="comma-separated metrics: a row per metric for each builder that reads one "
                         "(default the config's)")
@@ -78,23 +77,33 @@ def _names(text: str, key: str) -> list[str]:
     return names
 
 
+def default_builders() -> list[str]:
+    """The default rows: the builders with a ``compare_row`` trait (the paper's four builders and
+    the top-down SAOH), in that order."""
+    from lightcuts.trees.registry import BUILDERS
+
+    rows = [e for e in BUILDERS.entries() if e.trait("compare_row") is not None]
+    return [e.name for e in sorted(rows, key=lambda e: e.trait("compare_row"))]
+
+
 def resolve_rows(args, cfg) -> list[tuple[str, object]]:
     """(label, TreeSpec) per row; each builder gets only the metric and c it reads; a builder that
     reads a metric gets one row per ``--metrics`` name, labelled ``builder/metric`` when there are
     several."""
-    from lightcuts.trees.spec import tree_spec
+    from lightcuts.trees.spec import config_tree, tree_spec
 
-    builders = _names(args.builders, "--builders") if args.builders is not None else list(DEFAULT_BUILDERS)
-    metrics = _names(args.metrics, "--metrics") if args.metrics is not None else [cfg.tree.metric]
-    keys = {"builder": "--builders", "metric": "--metrics" if args.metrics is not None else "tree.metric"}
+    builders = _names(args.builders, "--builders") if args.builders is not None else default_builders()
+    _, metric, c, keys = config_tree(cfg.tree)
+    metrics = _names(args.metrics, "--metrics") if args.metrics is not None else [metric]
+    keys = {**keys, "builder": "--builders", **({"metric": "--metrics"} if args.metrics is not None else {})}
     rows = []
     for b in builders:
-        first = tree_spec(b, metrics[0], cfg.tree.c, keys, drop_unread=True)
+        first = tree_spec(b, metrics[0], c, keys, drop_unread=True)
         if first.metric is None or len(metrics) == 1:
             rows.append((b, first))
             continue
         for m in metrics:
-            rows.append((f"{b}/{m}", tree_spec(b, m, cfg.tree.c, keys, drop_unread=True)))
+            rows.append((f"{b}/{m}", tree_spec(b, m, c, keys, drop_unread=True)))
     if args.metrics is not None and not any(s.metric is not None for _, s in rows):
         raise LightcutsError(f"--metrics: none of the builders ({', '.join(builders)}) reads a metric")
     return rows
@@ -254,7 +263,8 @@ def _row(args, cfg, plan, label, shared, store: Path, pixels, reference) -> dict
     path = store / f"{file_label(label)}.npz"
     cached = None if args.force else _load_cached(path, key)
     if cached is not None:
-        return {"row": json.loads(str(cached["row"])), "cut": cached["cut"], "image": cached["image"]}
+        return {"row": {**json.loads(str(cached["row"])), "plugins": plan.record()}, "cut": cached["cut"],
+                "image": cached["image"]}
 
     s = shared.get()
     for typ, ls in s.lights.items():  # load (or compile) the builder's kernels untimed
@@ -280,7 +290,7 @@ def _row(args, cfg, plan, label, shared, store: Path, pixels, reference) -> dict
            "summed_s": s.seconds + t_build + t_image,
            "cut_mean": float(result.cut_size.mean()), "cut_max": float(result.cut_size.max()),
            "shadow_rays_per_pixel": float(result.shadow_rays) / n_pixels,
-           "err_median": None, "err_p99": None, "pixels_compared": 0}
+           "err_median": None, "err_p99": None, "pixels_compared": 0, "plugins": plan.record()}
     if reference is not None:
         sample = result.image[pixels[:, 1] - y0, pixels[:, 0] - x0]
         err = relative_error(sample[:, None], reference["image"][:, None])
@@ -295,11 +305,12 @@ def _mitsuba(args, cfg, shared, store: Path, results: list[dict]) -> dict:
     """Lightcuts against Mitsuba's path tracer at equal time: the agglomerative row's image (the
     first row's without one) and a Mitsuba render with the spp that fills that row's image time,
     each against a ``--mitsuba-spp`` Mitsuba render (energy ratio, per-pixel and 8x8-block error)."""
+    from lightcuts.config.schema import DEFAULT_BUILDER
     from lightcuts.io import save_npz
     from lightcuts.mitsuba.render import mitsuba_version, render_mitsuba, spp_for_seconds
     from lightcuts.report.images import compare_images
 
-    base = next((r for r in results if r["row"]["label"] == "agglomerative"), results[0])
+    base = next((r for r in results if r["row"]["label"] == DEFAULT_BUILDER), results[0])
     key = _key(what="mitsuba", config=_shared_config(cfg), spp=args.mitsuba_spp, version=mitsuba_version())
     path = store / "mitsuba-reference.npz"
     cached = None if args.force else _load_cached(path, key)
@@ -327,7 +338,10 @@ def _write(args, cfg, out: Path, results: list[dict], reference, pixels, diff, m
     from lightcuts.report.images import write_exr, write_png
 
     rows = [dict(r["row"]) for r in results]
-    base = next((r["cut_mean"] for r in rows if r["label"] == "divisive-6d"), None)
+    from lightcuts.trees.registry import BUILDERS
+
+    base = next((r["cut_mean"] for r in rows if r["label"] == r["builder"] and r["builder"] in BUILDERS
+                 and BUILDERS.entry(r["builder"]).trait("compare_baseline")), None)
     for r in rows:
         r["cut_vs_divisive_6d"] = r["cut_mean"] / base if base else None
     title = (f"{cfg.name}: {sum(rows[0]['lights'].values()):,} lights, eps {cfg.render.eps:g}, "

@@ -1,8 +1,9 @@
 """The plan step: every name a run uses resolved, and every combination checked, before any work.
 
 A command loads its config, calls :func:`plan_run` and then only calls the plan's stage methods in
-order (scene -> ray caster -> lights -> trees -> render); the stages receive resolved objects (a
-:class:`~lightcuts.trees.spec.TreeSpec`, a caster entry) and never look a name up again.
+order (scene -> ray caster -> lights -> trees -> render); the stages receive resolved objects (the
+scene type, a :class:`~lightcuts.trees.spec.TreeSpec`, a caster entry, the integrator) and never
+look a name up again. :meth:`Plan.record` gives each plugin's resolved parameters for report.json.
 """
 
 from __future__ import annotations
@@ -12,24 +13,34 @@ from dataclasses import dataclass
 from lightcuts.accel.registry import RAY_CASTERS, make_caster
 from lightcuts.config import RunConfig
 from lightcuts.errors import LightcutsError
-from lightcuts.registry import Entry
-from lightcuts.trees.spec import TreeSpec, tree_spec
+from lightcuts.registry import Entry, Resolved
+from lightcuts.trees.spec import TreeSpec, config_tree, tree_spec
 
 
 @dataclass(frozen=True)
 class Plan:
     """cfg : the validated config; tree : the resolved builder, metric and c; caster : the resolved
-    ray-caster entry."""
+    ray-caster entry; scene_type : the resolved ``scene.builtin`` / ``scene.procedural`` (None for
+    mesh files alone); integrator : the resolved ``render.integrator``."""
 
     cfg: RunConfig
     tree: TreeSpec
     caster: Entry
+    scene_type: Resolved | None = None
+    integrator: Resolved | None = None
+
+    def record(self) -> dict:
+        """Each plugin's resolved parameters, for report.json: ``{"scene": ..., "builder": ...,
+        "integrator": ...}``, each ``{"type": NAME, param: value, ...}`` (scene None for meshes alone)."""
+        return {"scene": self.scene_type.record() if self.scene_type is not None else None,
+                "builder": self.tree.record(),
+                "integrator": self.integrator.record() if self.integrator is not None else None}
 
     def scene(self):
         """The Scene the config describes (built-in and/or mesh files, camera applied)."""
         from lightcuts.scene.build import scene_from_config
 
-        return scene_from_config(self.cfg)
+        return scene_from_config(self.cfg, self.scene_type)
 
     def make_caster(self, scene):
         """The ray caster over the scene's triangles."""
@@ -59,13 +70,18 @@ class Plan:
 
 
 def plan_run(cfg: RunConfig, *, render: bool = False, tree: TreeSpec | None = None) -> Plan:
-    """Resolve the config's builder, metric, c and ray caster; LightcutsError naming the key at fault.
+    """Resolve the config's scene type, builder, metric, c, ray caster and integrator; LightcutsError
+    naming the key at fault.
 
     render : the run renders, so the caster must be callable from the render kernels
     tree : an already resolved TreeSpec (e.g. from command-line options) instead of the config's
     """
+    from lightcuts.render.integrators import INTEGRATORS
+    from lightcuts.scene.registry import resolve_scene
+
+    scene_type = resolve_scene(cfg.scene)
     if tree is None:
-        tree = tree_spec(cfg.tree.builder, cfg.tree.metric, cfg.tree.c)
+        tree = tree_spec(*config_tree(cfg.tree))
     lc = cfg.lights
     # The sizes the config asks for (the particle tracer lands within a few percent of its count).
     for n in (lc.direct.count + lc.indirect.count,
@@ -85,9 +101,10 @@ def plan_run(cfg: RunConfig, *, render: bool = False, tree: TreeSpec | None = No
         from lightcuts.render.camera import check_crop
         from lightcuts.scene.build import image_size
 
-        width, height = image_size(cfg)
+        width, height = image_size(cfg, scene_type)
         check_crop(cfg.render.crop, SimpleNamespace(width=width, height=height))
-    return Plan(cfg, tree, caster)
+    integrator = INTEGRATORS.resolve(cfg.render.integrator, "render.integrator")
+    return Plan(cfg, tree, caster, scene_type, integrator)
 
 
 def tree_meta(trees: dict) -> dict:

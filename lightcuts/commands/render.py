@@ -77,7 +77,7 @@ def _run(args, cfg, plan, out_dir: Path, warmup: list) -> dict:
     finish_warmup(warmup[0] if warmup else None)
     t_wait = time.perf_counter() - t0
     result, t_render, t_load = render_timed(cfg, scene, caster, light_sets, trees, envmap, f"{cfg.name}: lightcuts",
-                                            args.no_progress)
+                                            args.no_progress, plan.integrator)
     t_jit = t_wait + t_load
     rows = result.image.shape[0]
 
@@ -94,6 +94,7 @@ def _run(args, cfg, plan, out_dir: Path, warmup: list) -> dict:
         "builder": used["builder"],
         "metric": used["metric"],
         "c": used["c"],
+        "plugins": plan.record(),
         "eps": cfg.render.eps,
         "max_cut": cfg.render.max_cut,
         "resolution": [int(result.image.shape[1]), int(result.image.shape[0])],

@@ -69,7 +69,7 @@ def resolve_specs(text: str | None, cfg) -> list:
     """TreeSpecs from ``--builders`` (default: every builder without a ``max_lights`` limit), each
     with the config's metric and c where it reads them."""
     from lightcuts.trees.registry import BUILDERS
-    from lightcuts.trees.spec import tree_spec
+    from lightcuts.trees.spec import config_tree, tree_spec
 
     if text is None:
         names = [e.name for e in BUILDERS.entries() if e.trait("max_lights") is None]
@@ -77,7 +77,8 @@ def resolve_specs(text: str | None, cfg) -> list:
         names = [b.strip() for b in text.split(",") if b.strip()]
         if not names:
             raise LightcutsError("--builders: no builder names given")
-    return [tree_spec(b, cfg.tree.metric, cfg.tree.c, {"builder": "--builders"}, drop_unread=True) for b in names]
+    _, metric, c, keys = config_tree(cfg.tree)
+    return [tree_spec(b, metric, c, {**keys, "builder": "--builders"}, drop_unread=True) for b in names]
 
 
 def time_builder(lights, spec, repeats: int, seed: int) -> tuple[float, float, object]:

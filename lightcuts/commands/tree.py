@@ -28,12 +28,11 @@ def _spec(args, cfg):
     """The TreeSpec of the options over the config's tree section. An option replaces its key and is
     refused where the builder does not read it; with ``--builder``, the config's metric and c are
     kept only where the new builder reads them."""
-    from lightcuts.trees.spec import tree_spec
+    from lightcuts.trees.spec import config_tree, tree_spec
 
-    builder, metric, c = (cfg.tree.builder, cfg.tree.metric, cfg.tree.c) if cfg is not None else (None, None, None)
-    keys = {}
+    builder, metric, c, keys = config_tree(cfg.tree) if cfg is not None else (None, None, None, {})
     if args.builder is not None:
-        spec = tree_spec(args.builder, metric, c, {"builder": "--builder"}, drop_unread=True)
+        spec = tree_spec(args.builder, metric, c, {**keys, "builder": "--builder"}, drop_unread=True)
         builder, metric, c = spec.builder, (spec.metric.name if spec.metric else None), spec.c
         keys["builder"] = "--builder"
     if args.metric is not None:

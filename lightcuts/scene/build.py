@@ -3,8 +3,8 @@
 Camera, in order of precedence, field by field (position, look_at, up, fov, resolution):
 
 1. the fields ``cfg.camera`` gives;
-2. the built-in scene's camera (the Cornell box's published one), if ``scene.builtin`` is set, or the
-   procedural scene's (``lightcuts.scene.procedural``), if ``scene.procedural`` is;
+2. the camera of the scene type ``scene.builtin`` or ``scene.procedural`` names
+   (``lightcuts.scene.registry.SCENES``: the Cornell box's published one, the kitchen's, ...), if set;
 3. otherwise a default framing camera (``framing_camera``): up +y, vertical fov ``DEFAULT_FOV``,
    ``DEFAULT_RESOLUTION``, looking along -z at the centre of the scene's bounding box from the +z side,
    at the distance where the box's bounding sphere just fits in both the vertical and the horizontal
@@ -14,37 +14,28 @@ Camera, in order of precedence, field by field (position, look_at, up, fov, reso
 from __future__ import annotations
 
 import math
-from typing import Callable
-
 import numpy as np
 
 from lightcuts.config.schema import CameraConfig, RunConfig
 from lightcuts.errors import LightcutsError
-from lightcuts.scene.cornell import RESOLUTION as CORNELL_RESOLUTION
-from lightcuts.scene.cornell import cornell_box
+from lightcuts.registry import Resolved
 from lightcuts.scene.loaders import concatenate_scenes, load_mesh
-from lightcuts.scene.procedural import RESOLUTIONS as PROCEDURAL_RESOLUTIONS
-from lightcuts.scene.procedural import procedural_scene
+from lightcuts.scene.registry import make_scene, resolve_scene
 from lightcuts.scene.scene import Camera, Scene
 
 DEFAULT_FOV = 40.0  # degrees, vertical
 DEFAULT_RESOLUTION = (512, 512)
 
-#: Built-in scenes by ``scene.builtin`` name: factory(materials overrides) -> Scene with a camera.
-BUILTINS: dict[str, Callable[..., Scene]] = {"cornell": cornell_box}
-#: Their cameras' (width, height), pixels, known without building them.
-BUILTIN_RESOLUTIONS = {"cornell": tuple(CORNELL_RESOLUTION)}
 
-
-def image_size(cfg: RunConfig) -> tuple[int, int]:
+def image_size(cfg: RunConfig, scene_type: Resolved | None = None) -> tuple[int, int]:
     """The (width, height) of the image ``cfg`` renders, in pixels, from the config alone (the
-    camera's precedence, see the module docstring), for checks before any scene is built."""
+    camera's precedence, see the module docstring; the scene type's ``resolution`` trait), for checks
+    before any scene is built. ``scene_type``: the plan's resolved type (else resolved here)."""
     if cfg.camera.resolution is not None:
         return tuple(cfg.camera.resolution)
-    if cfg.scene.builtin is not None:
-        return BUILTIN_RESOLUTIONS[cfg.scene.builtin]
-    if cfg.scene.procedural is not None:
-        return tuple(PROCEDURAL_RESOLUTIONS[cfg.scene.procedural.type])
+    scene_type = resolve_scene(cfg.scene) if scene_type is None else scene_type
+    if scene_type is not None:
+        return tuple(scene_type.trait("resolution"))
     return DEFAULT_RESOLUTION
 
 
@@ -86,35 +77,33 @@ def _apply_camera_config(cc: CameraConfig, base: Camera | None, bounds: np.ndarr
     return cam
 
 
-def scene_from_config(cfg: RunConfig) -> Scene:
+def scene_from_config(cfg: RunConfig, scene_type: Resolved | None = None) -> Scene:
     """The Scene ``cfg.scene`` describes, with its camera (module docstring) and ``cfg.name``.
 
-    Triangle order: the built-in or procedural scene's first, then each of ``cfg.scene.meshes`` in
-    order (a gallery's meshes after its room, placed on its plinths). Mesh paths are resolved with
-    ``cfg.resolve``; errors name ``scene.meshes.<i>``.
+    scene_type : the plan's resolved scene type (else resolved here, see
+        :func:`~lightcuts.scene.registry.resolve_scene`)
+    Triangle order: the scene type's first, then each of ``cfg.scene.meshes`` in order (a type with
+    the ``exhibits`` trait, the gallery, takes them: its room, then the meshes on their plinths). Mesh
+    paths are resolved with ``cfg.resolve``; errors name ``scene.meshes.<i>``.
     """
     sc = cfg.scene
-    parts = []
-    if sc.builtin is not None:
-        if sc.builtin not in BUILTINS:
-            raise LightcutsError(f"scene.builtin: unknown built-in {sc.builtin!r}; valid: {', '.join(BUILTINS)}")
-        parts.append(BUILTINS[sc.builtin](sc.materials))
-    elif sc.materials and sc.procedural is None:
+    scene_type = resolve_scene(sc) if scene_type is None else scene_type
+    if sc.materials and scene_type is None:
         raise LightcutsError(f"scene.materials.{next(iter(sc.materials))}: overrides built-in surfaces, "
                              "but neither scene.builtin nor scene.procedural is set")
     meshes = [load_mesh(cfg.resolve(m.file), m.scale, m.rotate, m.translate, m.material, key=f"scene.meshes.{i}")
               for i, m in enumerate(sc.meshes)]
-    if sc.procedural is not None:
-        if sc.procedural.type == "gallery":
-            parts.append(procedural_scene(sc.procedural, sc.materials, meshes, [m.translate for m in sc.meshes],
-                                          name=cfg.name))
-            meshes = []
+    parts = []
+    if scene_type is not None:
+        if scene_type.trait("exhibits"):
+            exhibits, offsets, meshes = meshes, [m.translate for m in sc.meshes], []
         else:
-            parts.append(procedural_scene(sc.procedural, sc.materials, name=cfg.name))
+            exhibits, offsets = [], []
+        parts.append(make_scene(scene_type, sc.materials, exhibits, offsets, name=cfg.name))
     parts += meshes
     if not parts:
         raise LightcutsError("scene: needs builtin, procedural or meshes")
-    base_camera = parts[0].camera if (sc.builtin is not None or sc.procedural is not None) else None
+    base_camera = parts[0].camera if scene_type is not None else None
     scene = concatenate_scenes(parts, name=cfg.name)
     scene.camera = _apply_camera_config(cfg.camera, base_camera, scene.bounds)
     return scene

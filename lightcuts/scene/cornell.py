@@ -37,6 +37,7 @@ import numpy as np
 from lightcuts.config.schema import Material
 from lightcuts.errors import LightcutsError
 from lightcuts.scene.loaders import as_material
+from lightcuts.scene.registry import SCENES
 from lightcuts.scene.scene import Camera, Scene
 
 WHITE = (0.725, 0.71, 0.68)
@@ -196,3 +197,9 @@ def cornell_face_ranges() -> dict[str, range]:
         out[name] = range(start, start + len(f))
         start += len(f)
     return out
+
+
+@SCENES.register("cornell", builtin=True, resolution=RESOLUTION)
+def _cornell(params: dict, materials=None, exhibits=(), offsets=(), name: str = "cornell") -> Scene:
+    """The Cornell box from Cornell's published data (``cornell_box``), named ``"cornell"``."""
+    return cornell_box(materials)

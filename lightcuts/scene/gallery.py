@@ -15,6 +15,7 @@ import numpy as np
 
 from lightcuts.config.schema import Material
 from lightcuts.scene.loaders import concatenate_scenes
+from lightcuts.scene.registry import SCENES
 from lightcuts.scene.scene import Camera, Scene
 from lightcuts.scene.shapes import PartList
 
@@ -106,3 +107,9 @@ def camera(n: int) -> Camera:
     rows = max(1, -(-n // PER_ROW))
     z = ROW_Z[0] + 0.5 * (rows - 1) * (ROW_Z[1] - ROW_Z[0])
     return Camera((0.5 * GW, 1.7, GD - 0.3), (0.5 * GW, 1.0, z), (0, 1, 0), 60.0, *RESOLUTION)
+
+
+@SCENES.register("gallery", exhibits=True, resolution=RESOLUTION)
+def _gallery(params: dict, materials=None, exhibits=(), offsets=(), name: str = "gallery") -> Scene:
+    """A lit gallery room with the config's meshes on plinths (``gallery_scene``)."""
+    return gallery_scene(list(exhibits), list(offsets), materials, name)

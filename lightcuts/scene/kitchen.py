@@ -23,7 +23,8 @@ import numpy as np
 
 from lightcuts.config.schema import Material
 from lightcuts.errors import LightcutsError
-from lightcuts.scene.scene import Camera
+from lightcuts.scene.registry import SCENES, SEED, triangles as triangles_param
+from lightcuts.scene.scene import Camera, Scene
 from lightcuts.scene.shapes import K_RANGE, Curved, PartList, faces_of, pose
 
 W, D, H, T = 5.0, 4.0, 2.7, 0.1
@@ -313,3 +314,10 @@ def kitchen_parts(triangles: int, seed, doors=(), window: bool = True) -> PartLi
 
 def _min_faces(c: Curved) -> int:
     return faces_of(c.kind, K_RANGE[c.kind][0])
+
+
+@SCENES.register("kitchen", params={"triangles": triangles_param(200_000), "seed": SEED}, resolution=RESOLUTION,
+                 description="a seeded kitchen down to 4 mm beads, lit by 160 small area lights")
+def kitchen_scene(params: dict, materials=None, exhibits=(), offsets=(), name: str = "kitchen") -> Scene:
+    """The kitchen (module docstring) with its camera; ``materials``: overrides by ``PALETTE`` name."""
+    return kitchen_parts(params["triangles"], params["seed"]).to_scene(PALETTE, materials, camera(), name)

@@ -15,8 +15,10 @@ import math
 
 import numpy as np
 
-from lightcuts.scene.kitchen import D, RESOLUTION, SIDE_DOOR, T, W, camera as kitchen_camera, kitchen_parts
-from lightcuts.scene.scene import Camera
+from lightcuts.registry import Param
+from lightcuts.scene.kitchen import PALETTE, D, RESOLUTION, SIDE_DOOR, T, W, camera as kitchen_camera, kitchen_parts
+from lightcuts.scene.registry import MAX_ROOMS, SCENES, SEED, triangles as triangles_param
+from lightcuts.scene.scene import Camera, Scene
 from lightcuts.scene.shapes import PartList, pose
 
 PITCH = W + 2 * T  # x distance between neighbouring rooms
@@ -64,3 +66,14 @@ def camera(rooms: int) -> Camera:
     if "front" in doors:
         return Camera((0.9, 1.6, 1.0), (0.5 * W + 0.6, 1.0, D + 1.5), (0, 1, 0), 70.0, *RESOLUTION)
     return kitchen_camera()
+
+
+@SCENES.register("rooms", params={
+    "triangles": triangles_param(100_000, "the triangle count per room, hit within a few percent"),
+    "rooms": Param(int, 4, lo=1, hi=MAX_ROOMS, doc="copies of the kitchen in the building"),
+    "seed": SEED}, resolution=RESOLUTION, description="a building of seeded kitchens joined by doorways")
+def rooms_scene(params: dict, materials=None, exhibits=(), offsets=(), name: str = "rooms") -> Scene:
+    """The building (module docstring) with its camera; ``materials``: overrides by the kitchen's
+    ``PALETTE`` names."""
+    parts = building_parts(params["rooms"], params["triangles"], params["seed"])
+    return parts.to_scene(PALETTE, materials, camera(params["rooms"]), name)

@@ -61,7 +61,7 @@ def agglomerative_stats(position, normal, luminance, light_type: str, metric: Me
                        what=(f"builder {name!r}", "check the lights' and tree.c's magnitudes"))
 
 
-@BUILDERS.register("agglomerative", reads=("metric", "c"), builtin_metrics_only=True)
+@BUILDERS.register("agglomerative", reads=("metric", "c"), builtin_metrics_only=True, compare_row=2)
 def agglomerative(position, normal, luminance, light_type: str, metric: Metric, c: float, seed: int):
     """Locally-ordered agglomerative clustering (Walter et al. 2008, Fig. 4); see the module docstring.
 
@@ -73,7 +73,7 @@ def agglomerative(position, normal, luminance, light_type: str, metric: Metric, 
     return agglomerative_stats(position, normal, luminance, light_type, metric, c, seed)[:4]
 
 
-@BUILDERS.register("agglomerative-heap", reads=("metric", "c"), builtin_metrics_only=True)
+@BUILDERS.register("agglomerative-heap", reads=("metric", "c"), builtin_metrics_only=True, compare_row=1)
 def agglomerative_heap(position, normal, luminance, light_type: str, metric: Metric, c: float, seed: int):
     """Heap-based agglomerative clustering (Walter et al. 2008, Fig. 3); see the module docstring.
 

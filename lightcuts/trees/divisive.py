@@ -223,7 +223,7 @@ def _divisive(position, normal, c):
     return left, right, light
 
 
-@BUILDERS.register("divisive-3d", reads=())
+@BUILDERS.register("divisive-3d", reads=(), compare_row=4)
 def divisive_3d(position, normal, luminance, light_type, metric, c, seed):
     """Split at the middle of the longest axis of the positions' box (directional: directions')."""
     left, right, light = _divisive(np.ascontiguousarray(position, np.float64),
@@ -231,7 +231,7 @@ def divisive_3d(position, normal, luminance, light_type, metric, c, seed):
     return left, right, light, 0
 
 
-@BUILDERS.register("divisive-6d", reads=("c",))
+@BUILDERS.register("divisive-6d", reads=("c",), compare_row=3, compare_baseline=True)
 def divisive_6d(position, normal, luminance, light_type, metric, c, seed):
     """Split at the middle of the longest axis in 6D: positions plus normals scaled by c."""
     left, right, light = _divisive(np.ascontiguousarray(position, np.float64),

@@ -10,7 +10,9 @@ that returns only the topology; ``lightcuts.trees.build.build_tree`` then comput
 cone, summed intensity and representative the same way for all builders. A builder declares what it
 reads: ``metric`` (a clustering metric; with the trait ``builtin_metrics_only`` if its kernels need a
 built-in metric's lower bound) and ``c`` (the cone-term scale); it receives None for what it does not
-read. The trait ``max_lights`` bounds the light sets it accepts (the O(N^2) reference).
+read. The trait ``max_lights`` bounds the light sets it accepts (the O(N^2) reference). For
+``lightcuts compare``: ``compare_row`` (an int) puts a builder in the default rows, in that order
+(the 2008 paper's Fig. 8), and ``compare_baseline`` marks the row the cut sizes are divided by.
 
 A metric entry's object is always a :class:`~lightcuts.trees.metrics.Metric` (an njit function
 registered or named by an entry point is wrapped); it reads ``c`` when it has a cone term.
@@ -22,7 +24,9 @@ metrics through ``lightcuts.metrics``, or at run time with ``BUILDERS.register("
 
 from __future__ import annotations
 
-from lightcuts.registry import Registry
+from lightcuts.config.schema import DEFAULT_METRIC
+from lightcuts.limits import MAX_COORD
+from lightcuts.registry import Param, Registry
 
 
 def _as_metric(name, obj):
@@ -31,11 +35,19 @@ def _as_metric(name, obj):
     return as_metric(obj, name)
 
 
+#: The parameters builders read (``reads=`` picks from them): a config gives them flat (``tree.metric``,
+#: ``tree.c``) or in the builder's mapping (``tree.builder: {type: agglomerative, metric: ..., c: ...}``).
+BUILDER_PARAMS = {
+    "metric": Param(str, DEFAULT_METRIC, doc="the clustering metric (a METRICS name)"),
+    "c": Param(float, None, above=0, hi=MAX_COORD,
+               doc="the cone-term scale; None: the scene diagonal / 16 (larger values would overflow the metric)"),
+}
+
 BUILDERS: Registry = Registry(
     "builder", group="lightcuts.builders",
     builtins=("lightcuts.trees.divisive", "lightcuts.trees.greedy", "lightcuts.trees.agglomerative",
               "lightcuts.trees.saoh"),
-    params=("metric", "c"), default_reads=("metric", "c"))
+    params=BUILDER_PARAMS, default_reads=("metric", "c"))
 METRICS: Registry = Registry("metric", group="lightcuts.metrics", builtins=("lightcuts.trees.metrics",),
                              params=("c",), coerce=_as_metric)
 

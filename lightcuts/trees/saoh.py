@@ -299,7 +299,7 @@ def split_costs(position, normal, luminance, light_type: str) -> np.ndarray:
     return costs
 
 
-@BUILDERS.register("saoh", reads=())
+@BUILDERS.register("saoh", reads=(), compare_row=5)
 def saoh(position, normal, luminance, light_type, metric, c, seed):
     """Top-down splits by the surface-area-orientation heuristic (Conty Estevez and Kulla 2018)."""
     pos, nrm, lum, oriented = _arrays(position, normal, luminance, light_type)

@@ -27,7 +27,6 @@ def write(tmp_path, text, name="run.yaml"):
     ("scene: {builtin: cornell}\nrender: {eps: fast}\n", "render.eps:"),
     ("scene: {builtin: cornell}\nrender: {eps: -1}\n", "render.eps:"),
     ("scene: {builtin: cornell}\nlights: {direct: {count: 1.5}}\n", "lights.direct.count:"),
-    ("scene: {builtin: sphere}\n", "scene.builtin:"),
     ("scene: {meshes: [{file: nothere.obj}]}\n", "scene.meshes.0.file: no such file"),
     ("scene: {builtin: cornell}\nlights: {environment: {file: sky.exr}}\n", "lights.environment.file: no such file"),
     ("scene: {builtin: cornell}\nlights: {environment: {count: 4}}\n", "lights.environment: give exactly one"),

@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 import trimesh
 
-from lightcuts.config.schema import ProceduralScene, load_config
+from lightcuts.config.schema import load_config
 from lightcuts.errors import LightcutsError
 from lightcuts.scene import gallery, kitchen, rooms
 from lightcuts.scene.build import image_size, scene_from_config
-from lightcuts.scene.procedural import procedural_scene
+from lightcuts.scene.registry import make_scene
 from lightcuts.scene.shapes import Curved, pose, resolutions
 
 ROOT = Path(__file__).parents[2]
@@ -25,13 +25,13 @@ def _bytes(scene, tmp_path, name) -> bytes:
 
 
 def test_same_seed_same_bytes_other_seed_differs(tmp_path):
-    a = procedural_scene(ProceduralScene(type="kitchen", triangles=SMALL, seed=3))
-    b = procedural_scene(ProceduralScene(type="kitchen", triangles=SMALL, seed=3))
-    c = procedural_scene(ProceduralScene(type="kitchen", triangles=SMALL, seed=4))
+    a = make_scene(dict(type="kitchen", triangles=SMALL, seed=3))
+    b = make_scene(dict(type="kitchen", triangles=SMALL, seed=3))
+    c = make_scene(dict(type="kitchen", triangles=SMALL, seed=4))
     assert _bytes(a, tmp_path, "a") == _bytes(b, tmp_path, "b")
     assert _bytes(a, tmp_path, "a") != _bytes(c, tmp_path, "c")
-    r1 = procedural_scene(ProceduralScene(type="rooms", rooms=2, triangles=SMALL, seed=3))
-    r2 = procedural_scene(ProceduralScene(type="rooms", rooms=2, triangles=SMALL, seed=3))
+    r1 = make_scene(dict(type="rooms", rooms=2, triangles=SMALL, seed=3))
+    r2 = make_scene(dict(type="rooms", rooms=2, triangles=SMALL, seed=3))
     assert _bytes(r1, tmp_path, "r1") == _bytes(r2, tmp_path, "r2")
 
 
@@ -109,7 +109,7 @@ def _check_emitters_face_room(scene, centres, half_extent):
 
 @pytest.mark.parametrize("n_rooms", [1, 2, 8])
 def test_rooms_emitters_face_their_room(n_rooms):
-    scene = procedural_scene(ProceduralScene(type="rooms", rooms=n_rooms, triangles=SMALL))
+    scene = make_scene(dict(type="rooms", rooms=n_rooms, triangles=SMALL))
     _check_emitters_face_room(scene, _room_centres(n_rooms), np.array([kitchen.W, kitchen.H, kitchen.D]) / 2)
     n_quads = len(scene.emitters) // 2
     if n_rooms == 8:
@@ -151,13 +151,13 @@ def test_gallery_stands_exhibits_on_plinths(tmp_path):
 
 
 def test_material_overrides_by_surface_name():
-    base = procedural_scene(ProceduralScene(type="kitchen", triangles=SMALL))
-    over = procedural_scene(ProceduralScene(type="kitchen", triangles=SMALL), {"worktop": {"exponent": 900}})
+    base = make_scene(dict(type="kitchen", triangles=SMALL))
+    over = make_scene(dict(type="kitchen", triangles=SMALL), {"worktop": {"exponent": 900}})
     changed = base.exponent != over.exponent
     assert changed.any() and np.all(over.exponent[changed] == 900)
     assert np.array_equal(base.albedo, over.albedo)
     with pytest.raises(LightcutsError, match=r"scene\.materials\.sofa: unknown surface"):
-        procedural_scene(ProceduralScene(type="kitchen", triangles=SMALL), {"sofa": {}})
+        make_scene(dict(type="kitchen", triangles=SMALL), {"sofa": {}})
 
 
 @pytest.mark.parametrize("name", ["kitchen", "rooms", "mesh-gallery"])
@@ -169,7 +169,7 @@ def test_shipped_config_builds(name):
     assert np.all(scene.camera.position > lo) and np.all(scene.camera.position < hi)
     assert len(scene.emitters) >= 100
     if name != "mesh-gallery":
-        assert abs(scene.n_faces - cfg.scene.procedural.triangles * (cfg.scene.procedural.rooms or 1)) \
+        assert abs(scene.n_faces - cfg.scene.procedural["triangles"] * cfg.scene.procedural.get("rooms", 1)) \
             <= 0.03 * scene.n_faces
 
 
