@@ -16,7 +16,8 @@ PACKAGE = Path(lightcuts.__file__).parent
 #: The stages in their order; a stage may import the ones before it. ``cluster`` is the clustering
 #: engine (kd-tree, Fig. 3/4) that the BVH builders of accel and the light-tree builders share.
 STAGES = ("cluster", "scene", "accel", "lights", "trees", "render", "report", "mitsuba")
-ABOVE = ("commands", "cli", "__main__")
+#: On top: the Python API (``api``, which the commands call) and the command line.
+ABOVE = ("api", "commands", "cli", "__main__")
 
 
 def imported_lightcuts_modules(path: Path) -> set[str]:
@@ -71,6 +72,13 @@ def _loaded_after_import(module: str) -> list[str]:
 def test_config_loads_no_stage():
     loaded = _loaded_after_import("lightcuts.config")
     assert not [m for m in loaded if m.split(".")[1:2] and m.split(".")[1] in STAGES + ABOVE], loaded
+
+
+@pytest.mark.parametrize("module", ["lightcuts", "lightcuts.api"])
+def test_the_package_and_its_api_load_no_stage(module):
+    """``import lightcuts`` and the API's names stay cheap: stages load when a function runs."""
+    loaded = _loaded_after_import(module)
+    assert not [m for m in loaded if m.split(".")[1:2] and m.split(".")[1] in STAGES + ("commands", "cli")], loaded
 
 
 @pytest.mark.parametrize("module", ["lightcuts.render.integrator", "lightcuts.report.images",
