@@ -36,7 +36,8 @@ from lightcuts.errors import LightcutsError
 def add_parser(sub) -> None:
     p = sub.add_parser("compare", help="render once per builder: the 2008 paper's Fig. 8 table, cut-size maps")
     p.add_argument("config")
-    p.add_argument("--builders", default=None, help=f"comma-separated builders (default {','.join(DEFAULT_BUILDERS)})")
+    p.add_argument("--builders", default=None,
+                   help=f"comma-separated builders (default {','.join(DEFAULT_BUILDERS)})")
     p.add_argument("--metrics", default=None,
                    help="comma-separated metrics: a row per metric for each builder that reads one "
                         "(default the config's)")
