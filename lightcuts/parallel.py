@@ -25,20 +25,17 @@ def threads_for(n: int, min_n: int) -> int:
     return numba.get_num_threads() if n >= min_n else 1
 
 
-# One pool for the process, its threads started on first use and kept: starting two threads cost
-# about 0.3 ms a call (0.07 ms on a kept pool), and the agglomerative builder makes over a hundred calls per tree.
-# The calling thread takes the first item itself, so the pool needs one thread fewer than numba.
+# One pool for the process, its threads started on first use and kept (the agglomerative builder makes
+# over a hundred calls per tree; docs/performance.md has the cost of a call). The calling thread takes
+# the first item itself, so the pool needs one thread fewer than numba.
 _POOL = ThreadPoolExecutor(max(1, numba.config.NUMBA_NUM_THREADS - 1), thread_name_prefix="lightcuts")
 
 
 def run_all(fn, items) -> None:
     """``fn(item)`` for every item: the first on this thread, the others on the shared pool. ``fn``
-    must not call run_all itself: it would wait for workers that wait for it.
-
-    Handing every item to the pool and waiting cost about 0.40 ms a call more than the work itself;
-    keeping one item here, 0.26 ms (1.3 ms of work on each of two threads, 200 calls of each kind
-    interleaved; a numba ``prange`` kernel: 0.04 ms, but each such kernel compiles its callees again,
-    seconds of a cold start). The agglomerative builder makes 37 such calls at 200K lights."""
+    must not call run_all itself: it would wait for workers that wait for it. Keeping one item on
+    the calling thread saves a hand-over per call; a ``prange`` kernel would cost less per call but
+    compiles its callees again (docs/performance.md, "Narratives moved from docstrings")."""
     items = list(items)
     futures = [_POOL.submit(fn, item) for item in items[1:]]
     try:

@@ -16,7 +16,8 @@ PACKAGE = Path(lightcuts.__file__).parent
 #: The stages in their order; a stage may import the ones before it. ``cluster`` is the clustering
 #: engine (kd-tree, Fig. 3/4) that the BVH builders of accel and the light-tree builders share.
 STAGES = ("cluster", "scene", "accel", "lights", "trees", "render", "report", "mitsuba")
-ABOVE = ("commands", "cli", "__main__")
+#: On top: the Python API (``api``, which the commands call) and the command line.
+ABOVE = ("api", "commands", "cli", "__main__")
 
 
 def imported_lightcuts_modules(path: Path) -> set[str]:
@@ -46,6 +47,8 @@ def test_imports_go_down_the_layers(path):
     imported = imported_lightcuts_modules(path) - {own}
     if own in ABOVE:
         return
+    if own == "__init__":  # the package exports the API's names, imported on first use
+        imported -= {"api"}
     assert not imported & set(ABOVE), f"{own} imports a command: {sorted(imported & set(ABOVE))}"
     if own in STAGES:
         later = set(STAGES[STAGES.index(own) + 1:])
@@ -71,6 +74,13 @@ def _loaded_after_import(module: str) -> list[str]:
 def test_config_loads_no_stage():
     loaded = _loaded_after_import("lightcuts.config")
     assert not [m for m in loaded if m.split(".")[1:2] and m.split(".")[1] in STAGES + ABOVE], loaded
+
+
+@pytest.mark.parametrize("module", ["lightcuts", "lightcuts.api"])
+def test_the_package_and_its_api_load_no_stage(module):
+    """``import lightcuts`` and the API's names stay cheap: stages load when a function runs."""
+    loaded = _loaded_after_import(module)
+    assert not [m for m in loaded if m.split(".")[1:2] and m.split(".")[1] in STAGES + ("commands", "cli")], loaded
 
 
 @pytest.mark.parametrize("module", ["lightcuts.render.integrator", "lightcuts.report.images",

@@ -490,7 +490,7 @@ def test_builder_mapping_and_flat_form_give_the_same_tree(tmp_path):
 
 
 def test_compare_rows_come_from_builder_traits():
-    from lightcuts.commands.compare import default_builders
+    from lightcuts.api.comparing import default_builders
 
     rows = default_builders()
     assert rows == ["agglomerative-heap", "agglomerative", "divisive-6d", "divisive-3d", "saoh"]

@@ -263,13 +263,20 @@ def _apply_override(data: dict, assignment: str, source: str) -> None:
         raise LightcutsError(f"--set {assignment}: value is not valid YAML ({what}); quote it to give a string")
     if not key.strip() or any(not p for p in parts):
         raise LightcutsError(f"--set {assignment!r}: expected a dotted key, e.g. render.eps=0.01")
+    set_key(data, key, value, "--set ")
+
+
+def set_key(data: dict, key: str, value, prefix: str = "") -> None:
+    """Set the dotted ``key`` (e.g. ``render.eps``) of a raw config dict to ``value``, making the
+    sections on the way; LightcutsError ``<prefix><key>: <section> is not a section``."""
+    parts = key.strip().split(".")
     node = data
     for p in parts[:-1]:
         if node.get(p) is None:
             node[p] = {}
         node = node[p]
         if not isinstance(node, dict):
-            raise LightcutsError(f"--set {key}: {p} is not a section")
+            raise LightcutsError(f"{prefix}{key}: {p} is not a section")
     node[parts[-1]] = value
 
 
@@ -304,8 +311,9 @@ def config_from_dict(data: dict, source: str = "<config>", base_dir: str | Path 
     return cfg
 
 
-def load_config(path: str | Path, overrides: list[str] = ()) -> RunConfig:
-    """Read, override (``key.sub=value``, value parsed as YAML) and validate a run config."""
+def load_config(path: str | Path, overrides: list[str] = (), values: dict | None = None) -> RunConfig:
+    """Read, override (``key.sub=value``, value parsed as YAML; then ``values``, dotted key -> Python
+    value, as the Python API gives them) and validate a run config."""
     path = Path(path)
     try:
         raw = path.read_bytes()
@@ -330,4 +338,8 @@ def load_config(path: str | Path, overrides: list[str] = ()) -> RunConfig:
         raise LightcutsError(f"{path}: expected a mapping at the top level")
     for a in overrides:
         _apply_override(data, a, str(path))
+    for key, value in (values or {}).items():
+        if not key.strip() or any(not p for p in key.strip().split(".")):
+            raise LightcutsError(f"{key!r}: expected a dotted key, e.g. render.eps")
+        set_key(data, key, value)
     return config_from_dict(data, str(path), path.parent.resolve())

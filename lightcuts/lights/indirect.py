@@ -203,8 +203,8 @@ def _trace_fused(cdata, key, path0, n, cdf, p0, e1, e2, normal, power, eps, face
     """Whole paths path0 .. path0 + n - 1 with per-ray calls of the caster (its data ``cdata``,
     lightcuts.accel.kernel_api): one thread's share, chunks of _FUSED_CHUNK paths taken from the
     counter ``tasks`` (int64 (1,), zero at the start; lightcuts.parallel.next_task). A ``nogil``
-    kernel on lightcuts.parallel's threads rather than a ``parallel=True`` one: it compiles in
-    seconds less.
+    kernel on lightcuts.parallel's threads rather than a ``parallel=True`` one, which compiles
+    longer (docs/performance.md).
 
     counts (n,) int64: VPLs of each path. With slots > 0, path i writes its VPLs to rows
     i * slots .. i * slots + counts[i] - 1 of vpos, vnrm, vint ((n * slots, 3); slots = max_bounces);

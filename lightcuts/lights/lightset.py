@@ -75,7 +75,7 @@ class LightSet:
     def luminance(self) -> np.ndarray:
         """(N,) float64 scalar intensity (Rec. 709 luminance of the RGB intensity)."""
         # Per element, not ``intensity @ LUMINANCE``: the BLAS call starts OpenBLAS threads whose
-        # spinning takes the second core from the numba kernels that follow (measured ~0.06 s).
+        # spinning takes a core from the numba kernels that follow (docs/performance.md).
         i = self.intensity
         return i[:, 0] * LUMINANCE[0] + i[:, 1] * LUMINANCE[1] + i[:, 2] * LUMINANCE[2]
 

@@ -106,23 +106,14 @@ def format_sweep(rows: list[dict]) -> str:
 
 def plot_sweep(path: Path, rows: list[dict], title: str) -> Path:
     """Log-log eye-image time and memory against triangles per caster; written atomically."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
+    from lightcuts.report.plots import loglog_panels
 
-    fig = Figure(figsize=(11.0, 4.6), dpi=110, layout="constrained")
-    FigureCanvasAgg(fig)
-    axes = fig.subplots(1, 2)
-    for c in dict.fromkeys(r["caster"] for r in rows):
-        for ax, key, scale in ((axes[0], "eye_s", 1.0), (axes[1], "memory_bytes", 2.0 ** -20)):
+    panels = []
+    for key, scale, label in (("eye_s", 1.0, "eye image time (s)"), ("memory_bytes", 2.0 ** -20, "memory (MB)")):
+        series = []
+        for c in dict.fromkeys(r["caster"] for r in rows):
             n, y = _series(rows, c, key)
             if len(n):
-                ax.loglog(n, y * scale, "o-", label=c)
-    for ax, label in zip(axes, ("eye image time (s)", "memory (MB)")):
-        ax.set_xlabel("triangles")
-        ax.set_ylabel(label)
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize="x-small")
-    fig.suptitle(title)
-    with atomic_path(path, suffix=".png") as tmp:
-        fig.savefig(tmp, format="png")
-    return path
+                series.append((c, n, y * scale))
+        panels.append(("triangles", label, series))
+    return loglog_panels(path, panels, title, (11.0, 4.6), legend_size="x-small")

@@ -11,8 +11,6 @@ from pathlib import Path
 
 import numpy as np
 
-from lightcuts.errors import LightcutsError
-from lightcuts.io import atomic_path
 
 CSV_FIELDS = ("n_requested", "n_lights", "builder", "median_s", "min_s", "repeats", "depth")
 
@@ -28,14 +26,9 @@ def fitted_exponent(n: np.ndarray, seconds: np.ndarray) -> float:
 
 def plot_scaling(path: Path, rows: list[dict], title: str) -> Path:
     """Log-log build time against N per builder, with O(N) and O(N^2) guides; written atomically."""
-    try:
-        from matplotlib.backends.backend_agg import FigureCanvasAgg
-        from matplotlib.figure import Figure
-    except ImportError:
-        raise LightcutsError("scaling plot needs matplotlib: pip install matplotlib") from None
+    from lightcuts.report.plots import new_figure, save_png
 
-    fig = Figure(figsize=(6.4, 4.8), dpi=120)
-    FigureCanvasAgg(fig)
+    fig = new_figure((6.4, 4.8), 120)
     ax = fig.add_subplot()
     builders = list(dict.fromkeys(r["builder"] for r in rows))
     all_n = np.array([r["n_lights"] for r in rows], float)
@@ -55,9 +48,7 @@ def plot_scaling(path: Path, rows: list[dict], title: str) -> Path:
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize="small")
     fig.tight_layout()
-    with atomic_path(path, suffix=".png") as tmp:
-        fig.savefig(tmp, format="png")
-    return path
+    return save_png(fig, path)
 
 
 def format_table(rows: list[dict]) -> str:
@@ -81,26 +72,17 @@ RENDER_CSV_FIELDS = ("n_requested", "n_lights", "builder", "cut_mean", "cut_max"
 def plot_render_scaling(path: Path, rows: list[dict], title: str) -> Path:
     """Log-log average cut size and render time against N per builder (``lightcuts scaling
     --render``), each builder's fitted exponent in the legend; written atomically."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
+    from lightcuts.report.plots import loglog_panels
 
-    fig = Figure(figsize=(11.0, 4.4), dpi=110, layout="constrained")
-    FigureCanvasAgg(fig)
-    axes = fig.subplots(1, 2)
-    for b in dict.fromkeys(r["builder"] for r in rows):
-        n = np.array([r["n_lights"] for r in rows if r["builder"] == b], float)
-        for ax, key in zip(axes, ("cut_mean", "render_s")):
+    panels = []
+    for key, label in (("cut_mean", "average cut size (nodes per eye ray)"), ("render_s", "render time (s)")):
+        series = []
+        for b in dict.fromkeys(r["builder"] for r in rows):
+            n = np.array([r["n_lights"] for r in rows if r["builder"] == b], float)
             y = np.array([r[key] for r in rows if r["builder"] == b], float)
-            ax.loglog(n, y, "o-", label=f"{b} (N^{fitted_exponent(n, y):.2f})")
-    for ax, label in zip(axes, ("average cut size (nodes per eye ray)", "render time (s)")):
-        ax.set_xlabel("number of lights N")
-        ax.set_ylabel(label)
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize="small")
-    fig.suptitle(title)
-    with atomic_path(path, suffix=".png") as tmp:
-        fig.savefig(tmp, format="png")
-    return path
+            series.append((f"{b} (N^{fitted_exponent(n, y):.2f})", n, y))
+        panels.append(("number of lights N", label, series))
+    return loglog_panels(path, panels, title, (11.0, 4.4))
 
 
 def format_render_table(rows: list[dict]) -> str:

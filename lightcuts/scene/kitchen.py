@@ -10,7 +10,7 @@ of LED panels, each 3 x 3 emitting tiles. Small items (cups, bowls, stacks of sa
 bottles, fruit, utensils, bolts, beads) sit in 12 cm cells on the worktop, table, shelves and
 wall-cabinet tops; their number grows with the triangle budget, and the curved solids' tessellation
 takes up the rest of it (``shapes.resolutions``), so the scene hits the requested triangle count to
-a few triangles (the 1995 HUG paper's kitchen likewise gained bowls and stacks of plates).
+a few triangles.
 
 Emitters are one-sided quads 1 mm off the surface they are mounted on, facing into the room. All
 other parts are closed solids (watertight). Doorways (0.9 x 2.1 m) open the side walls near the

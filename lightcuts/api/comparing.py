@@ -1,0 +1,306 @@
+r"""The run rendered once per builder (and metric), the 2008 paper's Fig. 8, in memory
+(:class:`Comparison`); shared by :func:`lightcuts.compare` and ``lightcuts compare``.
+
+Every row uses the same scene, lights and seed; only the trees differ. The scene, ray caster and
+lights are made once; per row the trees are built (``Build``: the numba kernels are loaded or
+compiled first, on a few lights, and not timed) and the image rendered (``Image time``: after a
+one-pixel render that loads the render kernel). ``Preprocess total`` is the shared scene and light
+time plus the row's build; ``Summed time`` adds the image time. The error is the per-pixel relative
+luminance error against the all-lights reference (:func:`lightcuts.render.integrator.render_reference`)
+on one seeded sample of pixels, the same for every row, over the sampled pixels brighter than 1% of
+the sample's mean (:func:`lightcuts.report.images.relative_error`). Finished rows and the reference
+go to a :class:`~lightcuts.report.compare_store.RowStore` when one is given.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from lightcuts.config.schema import DEFAULT_BUILDER
+from lightcuts.errors import LightcutsError
+
+DEFAULT_PIXELS = 1024
+#: Samples per pixel of the long Mitsuba path-traced render both equal-time images are measured against.
+DEFAULT_MITSUBA_SPP = 1024
+#: What a compare folder may hold (shell patterns): its own outputs and its row store.
+ALLOWED = ("table.md", "table.csv", "report.json", "cutsizes.png", "cutsize-*.png", "rows", "mitsuba-*.exr",
+           "mitsuba-*.png")
+#: Lights per type on which each builder's kernels are loaded (or compiled) before the timed build.
+_WARM_LIGHTS = 64
+
+
+def names(text, key: str) -> list[str]:
+    """Comma-separated names (or a sequence of them), none twice; LightcutsError naming ``key``."""
+    items = text.split(",") if isinstance(text, str) else [str(t) for t in text]
+    out = [b.strip() for b in items if b.strip()]
+    if not out:
+        raise LightcutsError(f"{key} {text!r}: no names given")
+    if len(set(out)) != len(out):
+        raise LightcutsError(f"{key} {text!r}: a name is given twice")
+    return out
+
+
+def default_builders() -> list[str]:
+    """The default rows: the builders with a ``compare_row`` trait (the paper's four builders and
+    the top-down SAOH), in that trait's order."""
+    from lightcuts.trees.registry import BUILDERS
+
+    rows = [e for e in BUILDERS.entries() if e.trait("compare_row") is not None]
+    return [e.name for e in sorted(rows, key=lambda e: e.trait("compare_row"))]
+
+
+def resolve_rows(cfg, builders=None, metrics=None, keys=("--builders", "--metrics")) -> list[tuple[str, object]]:
+    """(label, TreeSpec) per row; each builder gets only the metric and c it reads; a builder that
+    reads a metric gets one row per metric name, labelled ``builder/metric`` when there are several.
+    builders, metrics : comma-separated names or sequences (None: :func:`default_builders`, the
+    config's metric); keys : how errors name the two options."""
+    from lightcuts.trees.spec import config_tree, tree_spec
+
+    bkey, mkey = keys
+    builders = names(builders, bkey) if builders is not None else default_builders()
+    given = metrics is not None
+    _, metric, c, cfg_keys = config_tree(cfg.tree)
+    metrics = names(metrics, mkey) if given else [metric]
+    spec_keys = {**cfg_keys, "builder": bkey, **({"metric": mkey} if given else {})}
+    rows = []
+    for b in builders:
+        first = tree_spec(b, metrics[0], c, spec_keys, drop_unread=True)
+        if first.metric is None or len(metrics) == 1:
+            rows.append((b, first))
+            continue
+        for m in metrics:
+            rows.append((f"{b}/{m}", tree_spec(b, m, c, spec_keys, drop_unread=True)))
+    if given and not any(s.metric is not None for _, s in rows):
+        raise LightcutsError(f"{mkey}: none of the builders ({', '.join(builders)}) reads a metric")
+    return rows
+
+
+def sample_pixels(width: int, height: int, crop, k: int, seed: int) -> np.ndarray:
+    """(K, 2) int64 (x, y): ``k`` distinct pixels of the image (or of the crop window) drawn with
+    ``seed``, in row-major order; all of them when the window has at most ``k``."""
+    x0, y0, x1, y1 = (0, 0, width, height) if crop is None else crop
+    n = (x1 - x0) * (y1 - y0)
+    rng = np.random.default_rng([int(seed), 0x636F6D70])  # "comp": a stream of its own
+    idx = np.arange(n) if k >= n else np.sort(rng.choice(n, size=k, replace=False))
+    return np.stack([x0 + idx % (x1 - x0), y0 + idx // (x1 - x0)], axis=1).astype(np.int64)
+
+
+@dataclass
+class Comparison:
+    """A compare run in memory, nothing written to disk until :meth:`save`.
+
+    rows : one dict per row with the keys and order of table.csv
+        (:data:`lightcuts.report.compare.CSV_FIELDS`; None where the CSV cell is blank)
+    report : the dict ``lightcuts compare`` writes as report.json (every row's full dict, config, machine)
+    cut_sizes : label -> (H, W) float32 cut size per pixel
+    images : label -> (H, W, 3) float32 linear RGB
+    """
+
+    config: object
+    rows: list
+    report: dict
+    cut_sizes: dict
+    images: dict
+    mitsuba_images: dict | None = None
+
+    def title(self) -> str:
+        r = self.report["rows"][0]
+        return (f"{self.config.name}: {sum(r['lights'].values()):,} lights, eps {self.config.render.eps:g}, "
+                f"seed {self.config.seed}")
+
+    def markdown(self) -> str:
+        """table.md's text: the Fig. 8 table (and the Mitsuba section)."""
+        from lightcuts.report.compare import format_markdown
+
+        return format_markdown(self.report["rows"], self.title()) + self._extra()
+
+    def _repr_markdown_(self) -> str:
+        return self.markdown()
+
+    def save(self, folder) -> Path:
+        """Write the files ``lightcuts compare`` writes into ``folder`` (replaced as a whole, its
+        ``rows/`` store kept): table.md, table.csv, cutsize-<label>.png, cutsizes.png, report.json,
+        and mitsuba-*.exr / .png with the Mitsuba study. Returns the folder."""
+        from lightcuts.io import check_output_dir, output_set, save_json
+        from lightcuts.report.compare import write_cut_images, write_tables
+        from lightcuts.report.images import write_exr, write_png
+
+        out = check_output_dir(Path(folder), "folder", ALLOWED)
+        report, rows = self.report, self.report["rows"]
+        diff = tuple(report["diff"]) if report["diff"] else None
+        with output_set(out, keep=("rows",)) as tmp:
+            write_tables(tmp, rows, self.title(), self._extra())
+            report["cut_scale_max"] = write_cut_images(tmp, {r["label"]: self.cut_sizes[r["label"]] for r in rows},
+                                                       diff, self.title())
+            for name, image in (self.mitsuba_images or {}).items():
+                write_exr(tmp / f"mitsuba-{name}.exr", image)
+                write_png(tmp / f"mitsuba-{name}.png", image, self.config.render.exposure)
+            save_json(tmp / "report.json", report)
+        return out
+
+    def _extra(self) -> str:
+        from lightcuts.report.compare import format_mitsuba
+
+        return format_mitsuba(self.report["mitsuba"]) if "mitsuba" in self.report else ""
+
+
+class _Shared:
+    """The scene, ray caster, environment and lights of every row, made on first use (a compare
+    whose rows are all stored needs none of them)."""
+
+    def __init__(self, plan):
+        self.plan = plan
+        self.ready = False
+        self.warmup = None
+
+    def get(self):
+        if not self.ready:
+            from lightcuts.commands.warmup import start_render_warmup
+
+            t0 = time.perf_counter()
+            self.scene = self.plan.scene()
+            if self.plan.caster.name == "embree":
+                self.warmup = start_render_warmup()
+            self.caster = self.plan.make_caster(self.scene)
+            self.envmap = self.plan.environment()
+            self.lights = self.plan.lights(self.scene, self.caster, self.envmap)
+            self.seconds = time.perf_counter() - t0
+            self.ready = True
+        return self
+
+
+def compare_run(cfg, plans, labels, pixels, store, *, source: str | None = None, diff=None,
+                mitsuba_spp: int | None = None, progress: bool = True) -> Comparison:
+    """Run the rows (one :class:`~lightcuts.commands.plan.Plan` and label each) and the reference on
+    ``pixels`` ((K, 2) int64 or None: no error columns); ``store`` a RowStore; ``mitsuba_spp``: add
+    the Mitsuba study with a long render of that many spp; ``source``, ``diff``: recorded in the report."""
+    from lightcuts.commands.warmup import finish_warmup
+
+    shared = _Shared(plans[0])
+    try:
+        reference = None
+        if pixels is not None:
+            reference = _reference(cfg, shared, store, pixels, progress)
+        results = [_row(cfg, plan, label, shared, store, pixels, reference, progress)
+                   for plan, label in zip(plans, labels)]
+        mitsuba = None
+        if mitsuba_spp is not None:
+            from lightcuts.mitsuba.study import equal_time_study
+
+            base = next((r for r in results if r["row"]["label"] == DEFAULT_BUILDER), results[0])
+            s = shared.get()
+            mitsuba = equal_time_study(cfg, s.scene, s.envmap, base, mitsuba_spp, store)
+    finally:
+        if shared.warmup is not None:
+            finish_warmup(shared.warmup, timeout=0)
+    return _comparison(cfg, source, results, reference, pixels, diff, mitsuba)
+
+
+def _reference(cfg, shared, store, pixels, progress: bool) -> dict:
+    """The all-lights reference on the pixel sample: {"image": (K, 3), "seconds", "shadow_rays"}."""
+    from lightcuts import __version__
+    from lightcuts.commands.common import progress_bar, render_settings
+    from lightcuts.render.integrator import render_reference
+    from lightcuts.report.compare_store import shared_config, store_key
+
+    key = store_key(what="reference", config=shared_config(cfg), pixels=pixels.tolist(), version=__version__)
+    cached = store.load("reference", key)
+    if cached is not None:
+        return {"image": cached["image"], "seconds": float(cached["seconds"]),
+                "shadow_rays": int(cached["shadow_rays"])}
+    s = shared.get()
+    with progress_bar(len(pixels), f"{cfg.name}: reference on {len(pixels)} pixels", not progress,
+                      unit="px") as bar:
+        t0 = time.perf_counter()
+        settings = {**render_settings(cfg, s.scene.camera, s.envmap), "crop": None}
+        ref = render_reference(s.scene, s.caster, s.lights, progress=bar.update, pixels=pixels, **settings)
+        seconds = time.perf_counter() - t0
+    image = ref.image[:, 0]
+    store.save("reference", key, image=image, seconds=np.array(seconds), shadow_rays=np.array(ref.shadow_rays))
+    return {"image": image, "seconds": seconds, "shadow_rays": int(ref.shadow_rays)}
+
+
+def _row(cfg, plan, label, shared, store, pixels, reference, progress: bool) -> dict:
+    """One row: {"row": the table row, "cut": (H, W) cut sizes, "image"}, from the store or computed."""
+    from lightcuts import __version__
+    from lightcuts.commands.common import render_timed
+    from lightcuts.commands.plan import tree_meta
+    from lightcuts.commands.warmup import finish_warmup
+    from lightcuts.lights.lightset import LightSet
+    from lightcuts.report.compare import file_label
+    from lightcuts.report.compare_store import shared_config, store_key
+    from lightcuts.report.images import relative_error
+    from lightcuts.trees.build import build_tree
+
+    spec = plan.tree
+    key = store_key(what="row", store=2, config=shared_config(cfg), builder=spec.name,
+                    metric=spec.metric.name if spec.metric is not None else None, c=spec.c,
+                    pixels=None if pixels is None else pixels.tolist(), version=__version__)
+    name = file_label(label)
+    cached = store.load(name, key)
+    if cached is not None:
+        return {"row": {**json.loads(str(cached["row"])), "plugins": plan.record()}, "cut": cached["cut"],
+                "image": cached["image"]}
+
+    s = shared.get()
+    for typ, ls in s.lights.items():  # load (or compile) the builder's kernels untimed
+        k = min(len(ls), _WARM_LIGHTS)
+        few = LightSet(ls.position[:k], ls.normal[:k], ls.intensity[:k], ls.type, ls.indirect[:k], dict(ls.meta))
+        build_tree(few, spec, seed=cfg.seed)
+    t0 = time.perf_counter()
+    trees = {typ: build_tree(ls, spec, seed=cfg.seed) for typ, ls in s.lights.items()}
+    t_build = time.perf_counter() - t0
+    used = tree_meta(trees)
+
+    finish_warmup(s.warmup)
+    s.warmup = None
+    result, t_image, _ = render_timed(cfg, s.scene, s.caster, s.lights, trees, s.envmap, f"{cfg.name}: {label}",
+                                      not progress)
+    crop = cfg.render.crop
+    x0, y0 = (0, 0) if crop is None else crop[:2]
+
+    n_pixels = result.cut_size.size
+    row = {"label": label, "builder": used["builder"], "metric": used["metric"], "c": used["c"],
+           "lights": {typ: len(ls) for typ, ls in s.lights.items()},
+           "build_s": t_build, "preprocess_s": s.seconds + t_build, "image_s": t_image,
+           "summed_s": s.seconds + t_build + t_image,
+           "cut_mean": float(result.cut_size.mean()), "cut_max": float(result.cut_size.max()),
+           "shadow_rays_per_pixel": float(result.shadow_rays) / n_pixels,
+           "err_median": None, "err_p99": None, "pixels_compared": 0, "plugins": plan.record()}
+    if reference is not None:
+        sample = result.image[pixels[:, 1] - y0, pixels[:, 0] - x0]
+        err = relative_error(sample[:, None], reference["image"][:, None])
+        row.update(err_median=err["median"], err_p99=err["p99"], err_mean=err["mean"], err_max=err["max"],
+                   pixels_compared=err["pixels"])
+    store.save(name, key, row=np.array(json.dumps(row)), cut=result.cut_size, image=result.image)
+    return {"row": row, "cut": result.cut_size, "image": result.image}
+
+
+def _comparison(cfg, source, results: list[dict], reference, pixels, diff, mitsuba) -> Comparison:
+    """The Comparison of finished rows: the rows' ratio to divisive-6d's cut, the report dict."""
+    from lightcuts.report.compare import CSV_FIELDS, machine
+
+    rows = [dict(r["row"]) for r in results]
+    from lightcuts.trees.registry import BUILDERS
+
+    base = next((r["cut_mean"] for r in rows if r["label"] == r["builder"] and r["builder"] in BUILDERS
+                 and BUILDERS.entry(r["builder"]).trait("compare_baseline")), None)
+    for r in rows:
+        r["cut_vs_divisive_6d"] = r["cut_mean"] / base if base else None
+    report = {"config": source, "name": cfg.name, "seed": cfg.seed,
+              "settings": cfg.model_dump(mode="json"), "machine": machine(), "rows": rows,
+              "pixels": None if pixels is None else len(pixels), "diff": list(diff) if diff else None}
+    if reference is not None:
+        report["reference"] = {"seconds": reference["seconds"], "shadow_rays": reference["shadow_rays"]}
+    images = None
+    if mitsuba is not None:
+        images = mitsuba.pop("images")
+        report["mitsuba"] = mitsuba
+    return Comparison(cfg, [{k: r.get(k) for k in CSV_FIELDS} for r in rows], report,
+                      {r["label"]: x["cut"] for r, x in zip(rows, results)},
+                      {r["label"]: x["image"] for r, x in zip(rows, results)}, images)

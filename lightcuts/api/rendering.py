@@ -1,0 +1,182 @@
+"""One render in memory (:class:`Render`) and the run that makes it, shared by :func:`lightcuts.render`
+and ``lightcuts render``: plan -> scene -> ray caster -> lights -> trees -> image (-> reference)."""
+
+from __future__ import annotations
+
+import platform
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+
+@dataclass
+class Render:
+    """A lightcuts render, nothing written to disk until :meth:`save`.
+
+    config : the RunConfig it was rendered from
+    image : (H, W, 3) float32, linear RGB radiance (H, W: the crop window's size when cropped)
+    cut_size : (H, W) float32, nodes in the final cut per pixel (summed over the trees, mean over spp)
+    report : the dict ``lightcuts render`` writes as report.json (settings, counts, seconds)
+    reference : (H, W, 3) float32, the all-lights reference image, or None (``reference=False``)
+    """
+
+    config: object
+    image: np.ndarray
+    cut_size: np.ndarray
+    report: dict
+    reference: np.ndarray | None = None
+
+    def srgb8(self) -> np.ndarray:
+        """(H, W, 3) uint8: the image as image.png has it (sRGB, ``render.exposure`` stops)."""
+        from lightcuts.report.images import to_srgb8
+
+        return to_srgb8(self.image, self.config.render.exposure)
+
+    def _repr_png_(self) -> bytes:
+        """The tone-mapped image as PNG bytes (shown by Jupyter/IPython)."""
+        import io
+
+        from PIL import Image
+
+        buf = io.BytesIO()
+        Image.fromarray(self.srgb8()).save(buf, format="PNG")
+        return buf.getvalue()
+
+    def save(self, folder) -> Path:
+        """Write the files ``lightcuts render`` writes into ``folder`` (replaced as a whole, see
+        :func:`lightcuts.io.output_set`): image.exr, image.png, cutsize.png, report.json, and
+        reference.exr / reference.png if there is a reference. Returns the folder."""
+        from lightcuts.io import SUBRUN_FOLDERS, check_output_dir, output_set, save_json
+        from lightcuts.report.images import write_exr, write_heatmap, write_png
+
+        cfg, report = self.config, self.report
+        out = check_output_dir(Path(folder), "folder")
+        with output_set(out, keep=SUBRUN_FOLDERS) as tmp:
+            write_exr(tmp / "image.exr", self.image)
+            write_png(tmp / "image.png", self.image, cfg.render.exposure)
+            write_heatmap(tmp / "cutsize.png", self.cut_size,
+                          title=f"{cfg.name}: {report['builder']}, eps {cfg.render.eps:g}, "
+                                f"mean cut {report['cut_size_mean']:.0f}")
+            if self.reference is not None:
+                write_exr(tmp / "reference.exr", self.reference)
+                write_png(tmp / "reference.png", self.reference, cfg.render.exposure)
+            save_json(tmp / "report.json", report)
+        return out
+
+    def summary(self) -> str:
+        """The one-line summary ``lightcuts render`` prints (size, lights, cut, rays, seconds, and the
+        error against the reference when there is one)."""
+        r = self.report
+        line = (f"{r['name']}: {r['resolution'][0]}x{r['resolution'][1]}, "
+                f"{sum(r['lights'].values())} lights, builder {r['builder']}: "
+                f"cut {r['cut_size_mean']:.1f} avg / {r['cut_size_max']:.0f} max, "
+                f"{r['shadow_rays_per_pixel']:.1f} shadow rays/pixel, "
+                f"preprocess {r['preprocess_seconds']:.2f} s, build {r['build_seconds']:.2f} s, "
+                f"render {r['render_seconds']:.2f} s")
+        if "reference" in r:
+            e = r["reference"]["relative_error"]
+            line += (f"; vs reference: median {100 * e['median']:.2f}%, p99 {100 * e['p99']:.2f}%, "
+                     f"speed-up {r['reference']['speedup']:.0f}x")
+        return line
+
+    def __repr__(self) -> str:
+        return f"<Render {self.summary()}>"
+
+
+def render_run(cfg, plan, source: str | None, reference: bool = False, progress: bool = True) -> Render:
+    """Run the plan (:func:`lightcuts.commands.plan.plan_run` of ``cfg`` with ``render=True``) and
+    return the Render; ``source`` is the config file recorded in the report (None: none)."""
+    from lightcuts.commands.warmup import finish_warmup
+
+    warmup = []  # the child compiling the render kernel, if any
+    try:
+        return _run(cfg, plan, source, reference, progress, warmup)
+    finally:
+        finish_warmup(warmup[0] if warmup else None, timeout=0)
+
+
+def _run(cfg, plan, source, reference: bool, progress: bool, warmup: list) -> Render:
+    from lightcuts import __version__
+    from lightcuts.commands.common import progress_bar, render_settings, render_timed
+    from lightcuts.commands.plan import tree_meta
+    from lightcuts.commands.warmup import finish_warmup, start_render_warmup
+    from lightcuts.render.integrator import render_reference
+    from lightcuts.report.images import relative_error
+
+    t0 = time.perf_counter()
+    scene = plan.scene()
+    if plan.caster.name == "embree":
+        warmup.append(start_render_warmup())  # None where the render kernel is cached
+    caster = plan.make_caster(scene)
+    envmap = plan.environment()
+    light_sets = plan.lights(scene, caster, envmap)
+    t_pre = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    trees = plan.trees(light_sets)
+    t_build = time.perf_counter() - t0
+    used = tree_meta(trees)
+
+    common = render_settings(cfg, scene.camera, envmap)
+    # The wait for numba (the child compiling the render kernel, then loading it) is reported on its own.
+    t0 = time.perf_counter()
+    finish_warmup(warmup[0] if warmup else None)
+    t_wait = time.perf_counter() - t0
+    result, t_render, t_load = render_timed(cfg, scene, caster, light_sets, trees, envmap, f"{cfg.name}: lightcuts",
+                                            not progress, plan.integrator)
+    t_jit = t_wait + t_load
+    rows = result.image.shape[0]
+
+    n_pixels = result.image.shape[0] * result.image.shape[1]
+    report = {
+        "lightcuts_version": __version__,
+        "config": source,
+        "name": cfg.name,
+        "seed": cfg.seed,
+        "scene": {"name": scene.name, "triangles": scene.n_faces, "emitters": int(len(scene.emitters)),
+                  "diagonal": scene.diagonal},
+        "lights": {typ: len(ls) for typ, ls in light_sets.items()},
+        "lights_indirect": int(sum(int(ls.indirect.sum()) for ls in light_sets.values())),
+        "builder": used["builder"],
+        "metric": used["metric"],
+        "c": used["c"],
+        "plugins": plan.record(),
+        "eps": cfg.render.eps,
+        "max_cut": cfg.render.max_cut,
+        "resolution": [int(result.image.shape[1]), int(result.image.shape[0])],
+        "crop": cfg.render.crop,
+        "spp": cfg.render.spp,
+        "clamping": {"enabled": cfg.render.clamp.enabled, "min_distance": cfg.render.clamp.min_distance,
+                     "clamped_energy_fraction": float(result.clamped_fraction)},
+        "preprocess_seconds": t_pre,
+        "jit_seconds": t_jit,
+        "build_seconds": t_build,
+        "render_seconds": t_render,
+        "cut_size_mean": float(result.cut_size.mean()),
+        "cut_size_max": float(result.cut_size.max()),
+        "eye_rays": int(result.eye_rays),
+        "shadow_rays": int(result.shadow_rays),
+        "shadow_rays_per_pixel": float(result.shadow_rays) / n_pixels,
+        "rays_per_second": float(result.eye_rays + result.shadow_rays) / max(t_render, 1e-9),
+        "threads": _threads(),
+        "machine": platform.machine(),
+    }
+    ref_image = None
+    if reference:
+        with progress_bar(rows, f"{cfg.name}: reference", not progress) as bar:
+            t0 = time.perf_counter()
+            ref = render_reference(scene, caster, light_sets, progress=bar.update, **common)
+            t_ref = time.perf_counter() - t0
+        ref_image = ref.image
+        report["reference"] = {"render_seconds": t_ref, "shadow_rays": int(ref.shadow_rays),
+                               "speedup": t_ref / max(t_render, 1e-9),
+                               "relative_error": relative_error(result.image, ref.image)}
+    return Render(cfg, result.image, result.cut_size, report, ref_image)
+
+
+def _threads() -> int:
+    import numba
+
+    return int(numba.get_num_threads())
