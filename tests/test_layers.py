@@ -74,7 +74,7 @@ def test_config_loads_no_stage():
 
 
 @pytest.mark.parametrize("module", ["lightcuts.render.integrator", "lightcuts.report.images",
-                                    "lightcuts.trees.build", "lightcuts.lights.generate", "lightcuts.accel.embree",
+                                    "lightcuts.trees.build", "lightcuts.lights.generate", "lightcuts.accel.embree.embree",
                                     "lightcuts.cluster.agglomerate"])
 def test_stages_load_no_command(module):
     loaded = _loaded_after_import(module)

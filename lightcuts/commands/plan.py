@@ -2,7 +2,7 @@
 
 A command loads its config, calls :func:`plan_run` and then only calls the plan's stage methods in
 order (scene -> ray caster -> lights -> trees -> render); the stages receive resolved objects (a
-:class:`~lightcuts.trees.spec.TreeSpec`, a caster entry) and never look a name up again.
+:class:`~lightcuts.trees.spec.TreeSpec`, a resolved caster) and never look a name up again.
 """
 
 from __future__ import annotations
@@ -12,18 +12,18 @@ from dataclasses import dataclass
 from lightcuts.accel.registry import RAY_CASTERS, make_caster
 from lightcuts.config import RunConfig
 from lightcuts.errors import LightcutsError
-from lightcuts.registry import Entry
+from lightcuts.registry import Resolved
 from lightcuts.trees.spec import TreeSpec, tree_spec
 
 
 @dataclass(frozen=True)
 class Plan:
     """cfg : the validated config; tree : the resolved builder, metric and c; caster : the resolved
-    ray-caster entry."""
+    ray caster (its entry and parameters; ``caster.record()`` for report.json)."""
 
     cfg: RunConfig
     tree: TreeSpec
-    caster: Entry
+    caster: Resolved
 
     def scene(self):
         """The Scene the config describes (built-in and/or mesh files, camera applied)."""
@@ -71,10 +71,7 @@ def plan_run(cfg: RunConfig, *, render: bool = False, tree: TreeSpec | None = No
     for n in (lc.direct.count + lc.indirect.count,
               (lc.sun is not None) + (lc.environment.count if lc.environment is not None else 0)):
         tree.check_size(n)
-    try:
-        caster = RAY_CASTERS.entry(cfg.render.ray_caster)
-    except LightcutsError as exc:
-        raise LightcutsError(f"render.ray_caster: {exc}") from None
+    caster = RAY_CASTERS.resolve(cfg.render.ray_caster, "render.ray_caster")
     if render and not caster.trait("kernel_callable", False):
         usable = [e.name for e in RAY_CASTERS.entries() if e.trait("kernel_callable", False)]
         raise LightcutsError(f"render.ray_caster: {caster.name!r} cannot be called from the render kernels; "

@@ -59,7 +59,7 @@ def _run(args, cfg, plan, out_dir: Path, warmup: list) -> dict:
 
     t0 = time.perf_counter()
     scene = plan.scene()
-    if plan.caster.name == "embree":
+    if plan.caster.trait("warm_render_kernel", False):
         warmup.append(start_render_warmup())  # None where the render kernel is cached
     caster = plan.make_caster(scene)
     envmap = plan.environment()
@@ -96,6 +96,7 @@ def _run(args, cfg, plan, out_dir: Path, warmup: list) -> dict:
         "c": used["c"],
         "eps": cfg.render.eps,
         "max_cut": cfg.render.max_cut,
+        "ray_caster": plan.caster.record(),
         "resolution": [int(result.image.shape[1]), int(result.image.shape[0])],
         "crop": cfg.render.crop,
         "spp": cfg.render.spp,
