@@ -146,7 +146,7 @@ def _factory(kind: str, doc: str):
 
 
 def _comparator_params(depth: int) -> dict:
-    return {"maxp": Param(int, MAXP, lo=1, doc="items a voxel holds before it becomes a sub-grid"),
+    return {"maxp": Param(int, MAXP, lo=1, hi=1 << 31, doc="items a voxel holds before it becomes a sub-grid"),
             "max_depth": Param(int, depth, lo=1, hi=64, doc="grids on a chain at most, the top grid counting 1")}
 
 
@@ -155,7 +155,7 @@ def register_grid_casters() -> None:
     register_caster("grid", _factory("grid", "one uniform grid, cube-root criterion (about F voxels)"),
                     device=GRID_DEVICE)
     register_caster("hug", _factory("hug", "hierarchy of uniform grids (Cazals et al. 1995)"), device=GRID_DEVICE,
-                    params={"alpha": Param(float, ALPHA, lo=1e-9, doc="clustering gap over the level's mean "
+                    params={"alpha": Param(float, ALPHA, lo=1e-9, hi=1e3, doc="clustering gap over the level's mean "
                                                                       "object size (> 0)"),
                             "levels": Param(int, LEVELS, lo=1, hi=64, doc="filter levels (object sizes)")})
     for kind, depth, what in (("recursive-grid", RECURSIVE_DEPTH, "recursive grid (Jevans and Wyvill 1989)"),
