@@ -167,7 +167,7 @@ def bench_scene(name, vertices, faces, n_rays, repeats, seed):
 _EXTERNAL = '''
 import numpy as np
 from numba import njit, prange
-from lightcuts.accel.embree_kernels import new_ray_buffer, ray_intersect, ray_occluded
+from lightcuts.accel.embree.embree_kernels import new_ray_buffer, ray_intersect, ray_occluded
 
 @njit(parallel=True, cache=True)
 def shade(intersect1, occluded1, scene, org, dirs, out):

@@ -84,7 +84,7 @@ def test_the_package_and_its_api_load_no_stage(module):
 
 
 @pytest.mark.parametrize("module", ["lightcuts.render.integrator", "lightcuts.report.images",
-                                    "lightcuts.trees.build", "lightcuts.lights.generate", "lightcuts.accel.embree",
+                                    "lightcuts.trees.build", "lightcuts.lights.generate", "lightcuts.accel.embree.embree",
                                     "lightcuts.cluster.agglomerate"])
 def test_stages_load_no_command(module):
     loaded = _loaded_after_import(module)

@@ -1,7 +1,7 @@
 """Plugins: one contract test per registry over every registered name, and the plan step's checks.
 
-A new builder, metric or ray caster is tested by registering it: the parametrisations below read the
-registries' names.
+A new builder or metric is tested by registering it: the parametrisations below read the registries'
+names (ray casters: tests/accel/test_casters.py).
 """
 
 from __future__ import annotations
@@ -17,11 +17,8 @@ import pytest
 from numba import njit
 
 import lightcuts
-from lightcuts.accel import RAY_CASTERS, make_caster
-from lightcuts.accel.base import kernel_caster_of
-from lightcuts.accel.bvh_kernels import ray_frame, watertight_t
-from lightcuts.accel.packets import mark_lane_occluded, packet_get_ray
 from lightcuts.errors import LightcutsError
+from lightcuts.accel import make_caster
 from lightcuts.registry import Registry, declare
 from lightcuts.render.integrators import INTEGRATORS
 from lightcuts.scene.registry import SCENES
@@ -138,165 +135,6 @@ def test_declared_parameters_are_checked():
         reg.register("x", lambda: None, reads=("eps",))
     reg.register("y", declare(lambda: None, reads=("c",), max_lights=5))
     assert reg.entry("y").reads == {"c"} and reg.entry("y").trait("max_lights") == 5
-
-
-# ---------------------------------------------------------------------------------- ray casters
-
-def _brute_force(vertices, faces, org, dirs):
-    """Closest t (inf on a miss) and triangle (-1) over every triangle, Moeller-Trumbore in float64."""
-    v0, v1, v2 = (vertices[faces[:, k]] for k in range(3))
-    e1, e2 = v1 - v0, v2 - v0
-    t_best = np.full(len(org), np.inf)
-    prim = np.full(len(org), -1)
-    for i in range(len(org)):
-        p = np.cross(dirs[i], e2)
-        det = np.einsum("ij,ij->i", e1, p)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            inv = 1.0 / det
-            s = org[i] - v0
-            u = np.einsum("ij,ij->i", s, p) * inv
-            q = np.cross(s, e1)
-            v = (q @ dirs[i]) * inv
-            t = np.einsum("ij,ij->i", e2, q) * inv
-        ok = (np.abs(det) > 1e-12) & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0)
-        if ok.any():
-            j = np.flatnonzero(ok)[np.argmin(t[ok])]
-            t_best[i], prim[i] = t[j], j
-    return t_best, prim
-
-
-@pytest.mark.parametrize("name", RAY_CASTERS.names())
-def test_caster_contract(name):
-    """Every caster: closest hit and occlusion equal a brute-force test over all triangles."""
-    rng = np.random.default_rng(5)
-    centres = rng.random((300, 1, 3))
-    vertices = (centres + 0.1 * rng.standard_normal((300, 3, 3))).reshape(-1, 3).astype(np.float32).astype(float)
-    faces = np.arange(900).reshape(300, 3)
-    org = (rng.random((2000, 3)) * 1.4 - 0.2).astype(np.float32).astype(float)
-    dirs = rng.standard_normal((2000, 3)).astype(np.float32).astype(float)
-    entry = RAY_CASTERS.entry(name)
-    caster = make_caster((vertices, faces), entry)
-    t, prim = caster.intersect(org, dirs, 0.0, np.inf)
-    t_ref, prim_ref = _brute_force(vertices, faces, org, dirs)
-    # Rays whose two nearest hits are within float32 rounding may name either triangle.
-    same = prim == prim_ref
-    assert same.mean() > 0.995
-    np.testing.assert_allclose(t[same & (prim >= 0)], t_ref[same & (prim >= 0)], rtol=1e-5)
-    np.testing.assert_array_equal(np.isinf(t), prim_ref < 0)
-    occluded = caster.occluded(org, dirs, 0.0, np.where(np.isfinite(t_ref), 0.5 * t_ref, 1.0))
-    assert not occluded[np.isfinite(t_ref)].any()
-    np.testing.assert_array_equal(caster.occluded(org, dirs, 0.0, np.inf), prim_ref >= 0)
-    if entry.trait("kernel_callable"):
-        assert kernel_caster_of(caster) is not None
-
-
-# An outside kernel caster: brute force over every triangle with the watertight test, registered at
-# run time. The render kernel's cache holds its specialisation under the kernel name below (edit its
-# device functions: delete lightcuts/render/__pycache__/*.nb[ic]).
-
-@njit(cache=True, error_model="numpy")
-def _brute_hit(data, ox, oy, oz, dx, dy, dz, tnear, tfar, any_hit):
-    tri = data[1]
-    kx, ky, kz, sx, sy, sz = ray_frame(dx, dy, dz)
-    best_t, best = tfar, np.int64(-1)
-    if not tfar >= tnear:
-        return np.inf, best
-    for f in range(tri.shape[0]):
-        t = watertight_t(tri, f, ox, oy, oz, kx, ky, kz, sx, sy, sz)
-        if t != np.inf and tnear <= t <= best_t and (best < 0 or t < best_t):
-            best_t, best = t, np.int64(f)
-            if any_hit:
-                break
-    return (best_t, best) if best >= 0 else (np.inf, best)
-
-
-@njit(cache=True)
-def _brute_intersect(data, scratch, ox, oy, oz, dx, dy, dz, tnear, tfar):
-    return _brute_hit(data, ox, oy, oz, dx, dy, dz, tnear, tfar, False)
-
-
-@njit(cache=True)
-def _brute_occluded(data, scratch, ox, oy, oz, dx, dy, dz, tnear, tfar):
-    return _brute_hit(data, ox, oy, oz, dx, dy, dz, tnear, tfar, True)[1] >= 0
-
-
-@njit(cache=True)
-def _brute_packet(data, scratch, pk, width, n):
-    for lane in range(n):
-        ox, oy, oz, dx, dy, dz, tnear, tfar = packet_get_ray(pk, width, lane)
-        if _brute_hit(data, ox, oy, oz, dx, dy, dz, tnear, tfar, True)[1] >= 0:
-            mark_lane_occluded(pk, width, lane)
-
-
-@njit(cache=True)
-def _brute_scratch(data):
-    return np.empty(0)
-
-
-def _brute_tag():
-    from lightcuts.accel.kernel_api import _DEVICE, register_kernel_caster
-
-    if "tests.brute_force" in _DEVICE:
-        return np.zeros(0, np.dtype([("tests.brute_force", np.uint8)]))
-    return register_kernel_caster("tests.brute_force", _brute_intersect, _brute_occluded, _brute_packet,
-                                  _brute_scratch)
-
-
-class _BruteCaster:
-    """Kernel-callable only through lightcuts.accel.kernel_api: no Embree, no BVH."""
-
-    def __init__(self, vertices, faces):
-        from lightcuts.accel.base import KernelCaster
-
-        v = np.asarray(vertices, np.float32).astype(np.float64)
-        tri = np.ascontiguousarray(v[np.asarray(faces)].reshape(-1, 9))
-        self.kernel_caster = KernelCaster((_brute_tag(), tri), 3)
-
-
-def test_a_caster_registered_at_run_time_renders(tmp_path, scratch_registries):
-    """Registered from outside, it renders the image the bvh-sah caster renders (the same watertight
-    test in float64), and the plan step accepts it for rendering."""
-    from lightcuts.commands.plan import plan_run
-    from lightcuts.config import load_config
-    from lightcuts.lights.direct import direct_lights
-    from lightcuts.render.integrator import render_image
-    from lightcuts.scene.cornell import cornell_box
-    from lightcuts.scene.scene import Camera
-
-    RAY_CASTERS.register("brute-force", _BruteCaster, kernel_callable=True)
-    scene = cornell_box()
-    c = scene.camera
-    camera = Camera(c.position, c.look_at, c.up, c.fov, 12, 12)
-    lights = {"oriented": direct_lights(scene, 32, seed=1)}
-    outside = render_image(scene, make_caster(scene, "brute-force"), lights, {}, camera=camera, reference=True)
-    bvh = render_image(scene, make_caster(scene, "bvh-sah"), lights, {}, camera=camera, reference=True)
-    assert outside.image.max() > 0 and outside.shadow_rays > 0
-    assert outside.image.tobytes() == bvh.image.tobytes()
-    (tmp_path / "run.yaml").write_text(CONFIG)
-    cfg = load_config(tmp_path / "run.yaml", ["render.ray_caster=brute-force"])
-    assert plan_run(cfg, render=True).caster.name == "brute-force"
-
-
-@pytest.mark.parametrize("kernel_caster, message", [
-    (((np.zeros(3),), 8), "data must be a tuple starting with a tag"),
-    (((np.zeros(0, np.dtype([("no.such.caster", np.uint8)])),), 8), "data must be a tuple starting with a tag"),
-    ("not a tuple", "is not a KernelCaster"),
-])
-def test_a_malformed_kernel_caster_is_one_line_error(kernel_caster, message):
-    from lightcuts.render.integrator import render_image
-    from lightcuts.scene.cornell import cornell_box
-
-    class Bad:
-        pass
-
-    bad = Bad()
-    bad.kernel_caster = kernel_caster
-    with pytest.raises(LightcutsError, match=f"^render.ray_caster: Bad.kernel_caster.*{message}"):
-        render_image(cornell_box(), bad, {}, {}, crop=(0, 0, 1, 1))
-    tag = _brute_tag()
-    bad.kernel_caster = ((tag, np.zeros((0, 9))), 9)
-    with pytest.raises(LightcutsError, match="width 9 must be an integer from 1 to 8"):
-        render_image(cornell_box(), bad, {}, {}, crop=(0, 0, 1, 1))
 
 
 # ------------------------------------------------------------------------------- the plan step
@@ -509,4 +347,5 @@ def test_plan_records_every_plugin(tmp_path):
     assert plan_run(load_config(tmp_path / "run.yaml")).record() == {
         "scene": {"type": "rooms", "rooms": 2, "seed": 0, "triangles": 100_000},
         "builder": {"type": "divisive-6d", "c": 0.5},
+        "ray_caster": {"type": "embree"},
         "integrator": {"type": "lightcuts"}}

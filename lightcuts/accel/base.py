@@ -8,14 +8,15 @@ its :attr:`RayCaster.kernel_caster` is a :class:`KernelCaster` ``(data, width)``
 What an outside caster supplies (lightcuts.accel.kernel_api has the signatures):
 
 1. four ``@njit`` device functions, ``intersect``, ``occluded``, ``packet_occluded`` and
-   ``new_scratch``, registered once with
-   ``tag = kernel_api.register_kernel_caster("mypackage.mycaster", intersect, occluded,
-   packet_occluded, new_scratch)``;
-2. ``kernel_caster`` returning ``KernelCaster((tag, *state), width)``: ``state`` is what its device
-   functions read (arrays, numbers, ctypes functions), ``width`` its packet width (1..8);
-3. registration as a caster with ``RAY_CASTERS.register(name, cls, kernel_callable=True)``.
+   ``new_scratch``, gathered as ``device = DeviceFunctions("mypackage.mycaster", intersect,
+   occluded, packet_occluded, new_scratch)``;
+2. ``kernel_caster`` returning ``KernelCaster((device.tag, *state), width)``: ``state`` is what its
+   device functions read (arrays, numbers, ctypes functions), ``width`` its packet width (1..8);
+3. one registration: ``register_caster(name, cls, device=device, params={...})``
+   (lightcuts.accel.registry), which makes it kernel-callable.
 
 The kernels then compile once per kernel name and load from numba's cache in later processes.
+Every caster works in a ``with`` block, which calls :meth:`RayCaster.close` on leaving.
 """
 
 from __future__ import annotations
@@ -57,6 +58,16 @@ class RayCaster:
     def occluded(self, org, dirs, tnear, tfar) -> np.ndarray:
         """(n,) bool: True where some triangle is hit with t in [tnear, tfar]."""
         raise NotImplementedError
+
+    def close(self) -> None:
+        """Release what the caster holds outside Python's memory (nothing by default; Embree's device
+        and scene). Idempotent; the caster is not used afterwards."""
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
 
 
 def _finite_f32(name: str, a: np.ndarray) -> None:
@@ -132,8 +143,8 @@ def kernel_caster_of(caster, key: str = "render.ray_caster") -> KernelCaster | N
         raise LightcutsError(f"{key}: {name}.kernel_caster is not a KernelCaster (data, width)")
     data, width = kc
     if kernel_name(data) is None:
-        raise LightcutsError(f"{key}: {name}.kernel_caster: data must be a tuple starting with a tag from "
-                             f"lightcuts.accel.kernel_api.register_kernel_caster")
+        raise LightcutsError(f"{key}: {name}.kernel_caster: data must be a tuple starting with a tag of "
+                             f"device functions registered with lightcuts.accel.registry.register_caster")
     if isinstance(width, bool) or not isinstance(width, (int, np.integer)) or not 1 <= width <= 8:
         raise LightcutsError(f"{key}: {name}.kernel_caster: width {width!r} must be an integer from 1 to 8")
     return KernelCaster(data, int(width))

@@ -2,15 +2,16 @@ r"""Ray casting from inside numba kernels, whatever the caster: :func:`intersect
 :func:`packet_occluded` and :func:`new_scratch`, resolved at compile time from the caster's data.
 
 A kernel-callable caster hands kernels its ``data``: a tuple whose first element is the caster's
-TAG (:func:`register_kernel_caster` returns it: a zero-length numpy array whose record dtype has one
-field named after the caster's kernel name). numba types that tag as a record array, so the kernel
+TAG (:attr:`DeviceFunctions.tag`: a zero-length numpy array whose record dtype has one field named
+after the caster's kernel name). Its registry entry declares the device functions
+(``register_caster(name, cls, device=DeviceFunctions(kernel, ...))``), which registers them here. numba types that tag as a record array, so the kernel
 compiles once per kernel name, and the calls below become direct calls of that caster's device
 functions (inlinable). The tag's type pickles as plain data (a field name), so numba's cache keys
 stay valid across processes and never import the caster's module; passing the device functions
 themselves as kernel arguments would not do (numba's dispatcher type is keyed on the object, and a
 new process recompiles).
 
-Device functions a caster registers (all ``@njit``; the ray arguments are float64 scalars, origin o
+Device functions a caster declares (all ``@njit``; the ray arguments are float64 scalars, origin o
 and direction d in world units, t in units of |d|):
 
 ``intersect(data, scratch, ox, oy, oz, dx, dy, dz, tnear, tfar) -> (t float64, prim int64)``
@@ -38,12 +39,20 @@ from lightcuts.errors import LightcutsError
 
 
 class DeviceFunctions(NamedTuple):
-    """The four device functions of one kernel caster (module docstring)."""
+    """The four device functions of one kernel caster (module docstring) and its kernel name
+    (letters, digits, ``_`` and ``.``, e.g. ``mypackage.grid``): what a caster's registry entry
+    declares as ``device`` (lightcuts.accel.registry.register_caster)."""
 
+    kernel: str
     intersect: Any
     occluded: Any
     packet_occluded: Any
     new_scratch: Any
+
+    @property
+    def tag(self) -> np.ndarray:
+        """The first element of the caster's data tuple (:func:`kernel_tag` of its kernel name)."""
+        return kernel_tag(self.kernel)
 
 
 _DEVICE: dict[str, DeviceFunctions] = {}
@@ -55,16 +64,18 @@ def kernel_tag(name: str) -> np.ndarray:
     return np.zeros(0, np.dtype([(name, np.uint8)]))
 
 
-def register_kernel_caster(name: str, intersect, occluded, packet_occluded, new_scratch,
-                           replace: bool = False) -> np.ndarray:
-    """Register the device functions of kernel name ``name`` (letters, digits, ``_`` and ``.``;
-    e.g. ``mypackage.grid``) and return its tag, the first element of the caster's data tuple."""
+def register_device(device: DeviceFunctions, replace: bool = False) -> np.ndarray:
+    """Make ``device`` callable through this module under its kernel name and return its tag.
+    Registering the same functions again (casters sharing a kernel, e.g. every BVH caster) is a
+    no-op; other functions under a taken name need ``replace``. Called by
+    lightcuts.accel.registry.register_caster, once per caster entry."""
+    name = device.kernel
     if not isinstance(name, str) or not _NAME.match(name):
         raise LightcutsError(f"kernel caster name {name!r}: letters, digits, '_' and '.' only")
-    if name in _DEVICE and not replace:
-        raise LightcutsError(f"kernel caster {name!r} is already registered")
-    _DEVICE[name] = DeviceFunctions(intersect, occluded, packet_occluded, new_scratch)
-    return kernel_tag(name)
+    if name in _DEVICE and _DEVICE[name] != device and not replace:
+        raise LightcutsError(f"kernel caster {name!r} is already registered with other device functions")
+    _DEVICE[name] = device
+    return device.tag
 
 
 def kernel_name(data) -> str | None:

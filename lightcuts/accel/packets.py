@@ -18,6 +18,8 @@ from numba.extending import intrinsic
 
 #: uint32 meaning "no hit" / "all geometries" in Embree's id and mask fields.
 INVALID_ID = 0xFFFFFFFF
+#: Lanes per packet call of the casters that cast a packet's rays one by one (the BVHs, the grids).
+PACKET_WIDTH = 8
 
 
 def _check_buffer(buf) -> bool:
@@ -25,8 +27,8 @@ def _check_buffer(buf) -> bool:
 
 
 # Per-ray accessors as intrinsics: ``buf.view(np.uint32)`` and ``buf.ctypes.data`` inside a device
-# function that is not inlined into its caller cost NRT reference counting on every ray (measured:
-# 130 ns per ray instead of 57 ns on a trivial scene, more than Embree's own entry cost).
+# function that is not inlined into its caller cost NRT reference counting on every ray
+# (docs/performance.md, "Packet accessors").
 
 @intrinsic
 def _address(typingctx, buf):

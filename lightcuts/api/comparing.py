@@ -164,7 +164,7 @@ class _Shared:
 
             t0 = time.perf_counter()
             self.scene = self.plan.scene()
-            if self.plan.caster.name == "embree":
+            if self.plan.caster.trait("warm_render_kernel", False):
                 self.warmup = start_render_warmup()
             self.caster = self.plan.make_caster(self.scene)
             self.envmap = self.plan.environment()

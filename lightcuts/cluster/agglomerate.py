@@ -2,7 +2,7 @@ r"""The clustering engine: fast agglomerative clustering (Walter, Bala, Kulkarni
 Agglomerative Clustering for Rendering", IEEE Symposium on Interactive Ray Tracing 2008), one
 implementation of the locally-ordered algorithm (Fig. 4) and of the heap-based one (Fig. 3) for every
 hierarchy the project builds: light trees (``lightcuts.trees.agglomerative``, items = lights, their
-boxes points) and BVHs (``lightcuts.accel.bvh_agglomerative``, items = triangles, their boxes).
+boxes points) and BVHs (``lightcuts.accel.bvh.bvh_agglomerative``, items = triangles, their boxes).
 
 The dissimilarity is pluggable: a built-in id of :mod:`lightcuts.cluster.dissimilarity` (the light
 metrics, the surface area of the union box), with its lower bound over a kd node

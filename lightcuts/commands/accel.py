@@ -40,7 +40,8 @@ def add_parser(sub) -> None:
     p = sub.add_parser("accel", help="ray casters side by side: build, SAH statistics, eye and shadow images")
     p.add_argument("config")
     p.add_argument("--casters", default=None,
-                   help="comma-separated ray casters (default: every kernel-callable caster, embree first)")
+                   help="comma-separated ray casters or aliases (default: every kernel-callable caster, embree first; "
+                        "a caster with aliases as its aliases' variants, e.g. recursive-grid-50, -100, -150)")
     p.add_argument("--repeats", type=int, default=3, help="timed runs of each image (median reported)")
     p.add_argument("--out", default=None, help="output folder (default renders/<name>/accel)")
     p.add_argument("--sweep", choices=("rooms",), default=None,
@@ -58,22 +59,21 @@ def run(args) -> int:
 
 
 def resolve_casters(text: str | None) -> list:
-    """Caster entries from ``--casters`` (default every kernel-callable caster, ``embree`` first)."""
+    """(label, Resolved) pairs from ``--casters`` (default every kernel-callable caster, ``embree``
+    first, a caster with aliases as its aliases' variants); a label is the name as given, so an
+    alias (``recursive-grid-150``) names its row."""
     from lightcuts.accel.registry import RAY_CASTERS
 
     if text is None:
-        entries = [e for e in RAY_CASTERS.entries() if e.trait("kernel_callable", False)]
-        return sorted(entries, key=lambda e: e.name != "embree")
+        # A caster whose aliases fix its parameters (the paper's MAXP sweep) is run as those variants.
+        aliases = RAY_CASTERS.aliases()
+        labels = sorted(label for e in RAY_CASTERS.entries() if e.trait("kernel_callable", False)
+                        for label in ([a for a, n in aliases.items() if n == e.name] or [e.name]))
+        return [(n, RAY_CASTERS.resolve(n, "--casters")) for n in sorted(labels, key=lambda n: n != "embree")]
     names = [n.strip() for n in str(text).split(",") if n.strip()]
     if not names or len(set(names)) != len(names):
         raise LightcutsError(f"--casters {text!r}: expected distinct comma-separated caster names")
-    out = []
-    for n in names:
-        try:
-            out.append(RAY_CASTERS.entry(n))
-        except LightcutsError as exc:
-            raise LightcutsError(f"--casters: {exc}") from None
-    return out
+    return [(n, RAY_CASTERS.resolve(n, "--casters")) for n in names]
 
 
 def run_accel(args) -> dict:
@@ -140,7 +140,7 @@ def _median_seconds(fn, repeats: int) -> tuple[float, object]:
     return float(np.median(times)), value
 
 
-def _warm(entry) -> None:
+def _warm(caster) -> None:
     """Load (or compile) a caster's kernels, untimed, on a small mesh with objects of several sizes
     (so that structures with levels, like the HUG's, take every path of their build and traversal)."""
     from lightcuts.accel.registry import make_caster
@@ -150,26 +150,26 @@ def _warm(entry) -> None:
     sizes = np.repeat([0.5, 0.05, 0.005], 100)[:, None, None]
     v = (centres + sizes * rng.normal(size=(300, 3, 3))).reshape(-1, 3)
     f = np.arange(len(v)).reshape(-1, 3)
-    c = make_caster((v, f), entry)
-    o, d = rng.uniform(-2, 2, (64, 3)), rng.normal(size=(64, 3))
-    c.intersect(o, d, 0.0, np.inf)
-    c.occluded(o, d, 0.0, np.inf)
-    getattr(c, "close", lambda: None)()
+    with make_caster((v, f), caster) as c:
+        o, d = rng.uniform(-2, 2, (64, 3)), rng.normal(size=(64, 3))
+        c.intersect(o, d, 0.0, np.inf)
+        c.occluded(o, d, 0.0, np.inf)
 
 
 def measure(args, cfg, plan, entries) -> tuple[list[dict], object]:
-    """(rows, scene): every caster of ``entries`` built and timed on the config's scene."""
+    """(rows, scene): every caster of ``entries`` ((label, Resolved) pairs) built and timed on the
+    config's scene."""
     from lightcuts.accel.registry import make_caster
 
     rays = scene_rays(cfg, plan)
     scene = rays["scene"]
     rows, first = [], None
     with progress_bar(len(entries), f"{cfg.name}: casters", args.no_progress, unit="caster") as bar:
-        for entry in entries:
-            bar.set_postfix_str(entry.name)
-            _warm(entry)
+        for label, spec in entries:
+            bar.set_postfix_str(label)
+            _warm(spec)
             t0 = time.perf_counter()
-            caster = make_caster(scene, entry)
+            caster = make_caster(scene, spec)
             build = time.perf_counter() - t0
             stats = dict(caster.stats()) if hasattr(caster, "stats") else {}
             if "build_s" in stats:  # the caster's own timing of its structure alone
@@ -182,12 +182,12 @@ def measure(args, cfg, plan, entries) -> tuple[list[dict], object]:
                 return prim, caster.occluded(*rays["shadow"][:2], 0.0, rays["shadow"][2])
 
             shadow_s, (s_prim, blocked) = _median_seconds(shadows, args.repeats)
-            getattr(caster, "close", lambda: None)()
+            caster.close()
             if first is None:
                 first = (eye_prim, s_prim, blocked)
             n_eye, n_shadow = len(eye_prim), len(s_prim) + len(blocked)
             rows.append({
-                "caster": entry.name, "triangles": scene.n_faces, "build_s": build,
+                "caster": label, "triangles": scene.n_faces, "build_s": build,
                 "build_tris_per_s": scene.n_faces / max(build, 1e-12), **stats,
                 "eye_s": eye_s, "eye_mrays_per_s": n_eye / eye_s / 1e6, "shadows_s": shadow_s,
                 "shadows_mrays_per_s": n_shadow / shadow_s / 1e6,

@@ -2,7 +2,7 @@
 
 A command loads its config, calls :func:`plan_run` and then only calls the plan's stage methods in
 order (scene -> ray caster -> lights -> trees -> render); the stages receive resolved objects (the
-scene type, a :class:`~lightcuts.trees.spec.TreeSpec`, a caster entry, the integrator) and never
+scene type, a :class:`~lightcuts.trees.spec.TreeSpec`, the resolved caster, the integrator) and never
 look a name up again. :meth:`Plan.record` gives each plugin's resolved parameters for report.json.
 """
 
@@ -13,27 +13,29 @@ from dataclasses import dataclass
 from lightcuts.accel.registry import RAY_CASTERS, make_caster
 from lightcuts.config import RunConfig
 from lightcuts.errors import LightcutsError
-from lightcuts.registry import Entry, Resolved
+from lightcuts.registry import Resolved
 from lightcuts.trees.spec import TreeSpec, config_tree, tree_spec
 
 
 @dataclass(frozen=True)
 class Plan:
     """cfg : the validated config; tree : the resolved builder, metric and c; caster : the resolved
-    ray-caster entry; scene_type : the resolved ``scene.builtin`` / ``scene.procedural`` (None for
-    mesh files alone); integrator : the resolved ``render.integrator``."""
+    ray caster (its entry and parameters); scene_type : the resolved ``scene.builtin`` /
+    ``scene.procedural`` (None for mesh files alone); integrator : the resolved ``render.integrator``."""
 
     cfg: RunConfig
     tree: TreeSpec
-    caster: Entry
+    caster: Resolved
     scene_type: Resolved | None = None
     integrator: Resolved | None = None
 
     def record(self) -> dict:
         """Each plugin's resolved parameters, for report.json: ``{"scene": ..., "builder": ...,
-        "integrator": ...}``, each ``{"type": NAME, param: value, ...}`` (scene None for meshes alone)."""
+        "ray_caster": ..., "integrator": ...}``, each ``{"type": NAME, param: value, ...}`` (scene None
+        for meshes alone)."""
         return {"scene": self.scene_type.record() if self.scene_type is not None else None,
                 "builder": self.tree.record(),
+                "ray_caster": self.caster.record(),
                 "integrator": self.integrator.record() if self.integrator is not None else None}
 
     def scene(self):
@@ -87,10 +89,7 @@ def plan_run(cfg: RunConfig, *, render: bool = False, tree: TreeSpec | None = No
     for n in (lc.direct.count + lc.indirect.count,
               (lc.sun is not None) + (lc.environment.count if lc.environment is not None else 0)):
         tree.check_size(n)
-    try:
-        caster = RAY_CASTERS.entry(cfg.render.ray_caster)
-    except LightcutsError as exc:
-        raise LightcutsError(f"render.ray_caster: {exc}") from None
+    caster = RAY_CASTERS.resolve(cfg.render.ray_caster, "render.ray_caster")
     if render and not caster.trait("kernel_callable", False):
         usable = [e.name for e in RAY_CASTERS.entries() if e.trait("kernel_callable", False)]
         raise LightcutsError(f"render.ray_caster: {caster.name!r} cannot be called from the render kernels; "

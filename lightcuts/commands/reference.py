@@ -78,7 +78,7 @@ def _lightcuts_image(args, cfg, plan, scene, envmap, warmup: list) -> tuple[np.n
     from lightcuts.commands.common import render_timed
 
     t0 = time.perf_counter()
-    if plan.caster.name == "embree":
+    if plan.caster.trait("warm_render_kernel", False):
         warmup.append(start_render_warmup())
     with plan.make_caster(scene) as caster:
         light_sets = plan.lights(scene, caster, envmap)

@@ -204,7 +204,9 @@ class RenderConfig(Strict):
     clamp: Clamp = Clamp()
     # Stops, applied to the PNG only; 2**exposure must be a normal float64.
     exposure: Annotated[float, Field(ge=-MAX_EXPOSURE, le=MAX_EXPOSURE)] = 0.0
-    ray_caster: str = DEFAULT_RAY_CASTER
+    # A caster name, or {type: NAME, param: value, ...}; resolved and checked by the plan step
+    # (lightcuts.accel.registry.RAY_CASTERS declares each caster's parameters).
+    ray_caster: PluginSpec = DEFAULT_RAY_CASTER
     # How each pixel is computed: a name or {type: NAME, ...} of lightcuts.render.integrators.INTEGRATORS.
     integrator: PluginSpec = DEFAULT_INTEGRATOR
     # Render only the window [x0, y0, x1, y1) of the image (pixels), e.g. for reference checks.

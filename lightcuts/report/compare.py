@@ -151,7 +151,7 @@ def machine() -> dict:
     except OSError:
         pass
     try:
-        from lightcuts.accel.embree import embree_version
+        from lightcuts.accel.embree.embree import embree_version
 
         embree = embree_version()
     except Exception as exc:  # reported, never fatal: the table is still valid

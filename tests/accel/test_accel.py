@@ -19,7 +19,7 @@ from numba import njit, prange
 
 import lightcuts
 from lightcuts.accel import RAY_CASTERS, make_caster
-from lightcuts.accel.embree_kernels import (PACKET_FLOATS, lane_occluded, new_ray_buffer, new_ray_packet,
+from lightcuts.accel.embree.embree_kernels import (PACKET_FLOATS, lane_occluded, new_ray_buffer, new_ray_packet,
                                            packet_occluded, packet_set_ray, ray_intersect, ray_occluded)
 from lightcuts.errors import LightcutsError
 
@@ -263,7 +263,7 @@ def test_new_ray_buffer_is_aligned_from_python():
 _EXTERNAL_MODULE = '''
 import numpy as np
 from numba import njit, prange
-from lightcuts.accel.embree_kernels import new_ray_buffer, ray_intersect, ray_occluded
+from lightcuts.accel.embree.embree_kernels import new_ray_buffer, ray_intersect, ray_occluded
 
 @njit(parallel=True, cache=True)
 def hits(intersect1, occluded1, scene, org, dirs, prim_out, occ_out):

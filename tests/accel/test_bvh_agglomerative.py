@@ -8,8 +8,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from lightcuts.accel.bvh import triangle_boxes
-from lightcuts.accel.bvh_agglomerative import (bvh_agglomerative, bvh_agglomerative_heap, bvh_agglomerative_stats,
+from lightcuts.accel.triangles import triangle_boxes
+from lightcuts.accel.bvh.bvh_agglomerative import (bvh_agglomerative, bvh_agglomerative_heap, bvh_agglomerative_stats,
                                                bvh_greedy_reference)
 from lightcuts.cluster.agglomerate import morton_order
 from lightcuts.cluster.dissimilarity import SURFACE_AREA

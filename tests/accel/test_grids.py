@@ -9,40 +9,22 @@ import pytest
 import trimesh
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from numba import njit
 
 from lightcuts.accel import RAY_CASTERS, make_caster
-from lightcuts.accel.bvh import triangle_boxes
-from lightcuts.accel.bvh_kernels import ray_frame, watertight_t
-from lightcuts.accel.grid_caster import GridCaster
-from lightcuts.accel.grids import GridForest
-from lightcuts.accel.hug import cluster3d, isolate, length_filter
+from lightcuts.accel.grids.grid_caster import GridCaster
+from lightcuts.accel.grids.grid_kernels import GRID_DEVICE
+from lightcuts.accel.grids.grids import GridForest
+from lightcuts.accel.grids.hug import cluster3d, isolate, length_filter
+from lightcuts.accel.triangles import ray_frame, triangle_boxes, watertight_t
 from lightcuts.errors import LightcutsError
 
-GRID_CASTERS = ["grid", "recursive-grid-50", "octree-50", "hug"]
+from brute import brute
+
+#: The registered grid casters (those whose device functions are the grid kernels'), and their aliases.
+GRID_CASTERS = [n for n in RAY_CASTERS.names() if RAY_CASTERS.entry(n).trait("device") is GRID_DEVICE]
+GRID_ALIASES = [a for a, n in RAY_CASTERS.aliases().items() if n in GRID_CASTERS]
 # Small MAXP and depth limits, so that the tests' small scenes nest several levels.
 DEEP = [("recursive-grid", dict(maxp=4, max_depth=4)), ("octree", dict(maxp=4, max_depth=8)), ("hug", {})]
-
-
-@njit(cache=True)
-def _brute(tri, org, dirs, tnear, tfar, t_out, p_out):
-    """Closest hit over every triangle with the casters' own triangle test (same t, bit for bit)."""
-    for i in range(org.shape[0]):
-        bt, bp = np.inf, -1
-        kx, ky, kz, sx, sy, sz = ray_frame(dirs[i, 0], dirs[i, 1], dirs[i, 2])
-        for f in range(tri.shape[0]):
-            t = watertight_t(tri, f, org[i, 0], org[i, 1], org[i, 2], kx, ky, kz, sx, sy, sz)
-            if t != np.inf and tnear[i] <= t <= tfar[i] and (bp < 0 or t < bt):
-                bt, bp = t, f
-        t_out[i], p_out[i] = bt, bp
-
-
-def brute(vertices, faces, org, dirs, tnear, tfar):
-    tri = np.ascontiguousarray(vertices.astype(np.float32).astype(np.float64)[faces].reshape(-1, 9))
-    n = len(org)
-    t, p = np.empty(n), np.empty(n, np.int64)
-    _brute(tri, org, dirs, np.broadcast_to(tnear, n).copy(), np.broadcast_to(tfar, n).copy(), t, p)
-    return t, p, tri
 
 
 def multiscale_scene(seed=3):
@@ -107,7 +89,7 @@ def caster(request, scene):
     v, f = scene
     if request.param in GRID_CASTERS:
         return make_caster((v, f), request.param)
-    return GridCaster(v, f, kind=request.param, **dict(DEEP)[request.param])
+    return make_caster((v, f), {"type": request.param, **dict(DEEP)[request.param]})
 
 
 def test_hits_equal_brute_force(caster, scene):
@@ -306,14 +288,13 @@ def test_coplanar_piles_terminate_for_every_structure():
     t_ref, _, _ = brute(v, f, org, dirs, 0.0, np.inf)
     # Every voxel that the pile's box covers holds the 200 identical triangles: refs against the grid's.
     grid_refs = make_caster((v, f), "grid").stats()["refs_per_item"]
-    for name in RAY_CASTERS.names():
-        if name.split("-")[0] not in ("grid", "recursive", "octree", "hug"):
-            continue
-        for params in ({}, {"maxp": 2, "max_depth": 30}) if name != "grid" and name != "hug" else ({},):
-            c = GridCaster(v, f, kind=name.rsplit("-", 1)[0] if name[-1].isdigit() else name, **params)
-            s = c.stats()
-            assert s["voxels"] < 50 * len(f) and s["refs_per_item"] < 20 * grid_refs, (name, params, s)
-            np.testing.assert_array_equal(c.intersect(org, dirs)[0], t_ref)
+    deep = [{"type": n, "maxp": 2, "max_depth": 30} for n in GRID_CASTERS if "maxp" in RAY_CASTERS.entry(n).params]
+    assert len(deep) == 2 and len(GRID_ALIASES) == 6
+    for spec in [*GRID_CASTERS, *GRID_ALIASES, *deep]:
+        c = make_caster((v, f), spec)
+        s = c.stats()
+        assert s["voxels"] < 50 * len(f) and s["refs_per_item"] < 20 * grid_refs, (spec, s)
+        np.testing.assert_array_equal(c.intersect(org, dirs)[0], t_ref)
 
 
 def test_saved_grids_load_and_cast_the_same(tmp_path, scene):
@@ -363,47 +344,6 @@ def test_empty_mesh():
         assert np.isinf(t).all() and (p == -1).all() and not c.occluded(np.zeros((2, 3)), np.ones((2, 3))).any()
 
 
-# ------------------------------------------------------------------------------ rendering
-
-@pytest.fixture(scope="module")
-def cornell_renders():
-    """The Cornell box at 24 x 24 with the same lights and tree, rendered with Embree and bvh-sah."""
-    from lightcuts.lights.direct import direct_lights
-    from lightcuts.lights.indirect import indirect_lights
-    from lightcuts.lights.lightset import LightSet
-    from lightcuts.render.integrator import render_image
-    from lightcuts.scene.cornell import cornell_box
-    from lightcuts.scene.scene import Camera
-    from lightcuts.trees.build import build_tree
-
-    scene = cornell_box()
-    c = scene.camera
-    camera = Camera(c.position, c.look_at, c.up, c.fov, 24, 24)
-    embree = make_caster(scene, "embree")
-    lights = LightSet.concatenate([direct_lights(scene, 64, seed=1), indirect_lights(scene, embree, 300, seed=2)])
-    lights, trees = {"oriented": lights}, {"oriented": build_tree(lights, "divisive-6d", seed=3)}
-
-    def render(name):
-        return render_image(scene, make_caster(scene, name), lights, trees, camera=camera)
-
-    return render, render("embree"), render("bvh-sah")
-
-
-@pytest.mark.parametrize("name", ["hug", "recursive-grid-50", "octree-50"])
-def test_render_equals_embree(name, cornell_renders):
-    """Rendered through the grids, the image is the BVH's bit for bit (the same watertight float64
-    test finds the same hits), and equals Embree's within the bounds of tests/test_bvh.py: Embree's
-    float32 t changes the cut's size at a few pixels (receivers coplanar with VPLs) and rounding."""
-    render, a, bvh = cornell_renders
-    b = render(name)
-    assert b.image.tobytes() == bvh.image.tobytes() and np.array_equal(b.cut_size, bvh.cut_size)
-    cut_differs = a.cut_size != b.cut_size
-    assert cut_differs.mean() < 0.05
-    rel = np.abs(a.image - b.image).max(axis=2) / np.maximum(a.image.max(axis=2), 1e-6)
-    assert (rel[~cut_differs] > 1e-4).mean() < 0.01
-    assert abs(float(a.image.mean()) - float(b.image.mean())) < 1e-3 * float(a.image.mean())
-
-
 @pytest.mark.parametrize("name", GRID_CASTERS)
 def test_no_ray_slips_through_a_closed_mesh(name):
     """Rays from inside an icosphere through its vertices and edge midpoints all hit it, through the
@@ -418,3 +358,28 @@ def test_no_ray_slips_through_a_closed_mesh(name):
     t, p = caster.intersect(org, dirs, 0.0, np.inf)
     assert (p >= 0).all(), f"{(p < 0).sum()} rays slipped through"
     assert caster.occluded(org, dirs, 0.0, np.inf).all()
+
+
+def test_declared_parameters_reach_the_build(scene):
+    """An alias, the mapping with the same values and (for MAXP 50) the bare name build the same
+    forest; another value builds another one, and the stats report what was used."""
+    v, f = scene
+    arrays = ("lo", "hi", "res", "vox_items", "item_refs", "vox_subs", "sub_refs")
+
+    def forest(spec):
+        return make_caster((v, f), spec).forest
+
+    for kind in ("recursive-grid", "octree"):
+        fifty = [forest(s) for s in (kind, f"{kind}-50", {"type": kind, "maxp": 50})]
+        assert all(getattr(x, k).tobytes() == getattr(fifty[0], k).tobytes() for x in fifty[1:] for k in arrays)
+        c = make_caster((v, f), {"type": kind, "maxp": 4, "max_depth": 4})
+        assert c.stats()["maxp"] == 4 and c.stats()["max_depth"] == 4
+        assert c.forest.n_grids > fifty[0].n_grids
+        assert forest(f"{kind}-150").item_refs.tobytes() == forest({"type": kind, "maxp": 150}).item_refs.tobytes()
+    a, b = make_caster((v, f), "hug"), make_caster((v, f), {"type": "hug", "alpha": 0.5, "levels": 2})
+    assert a.stats()["alpha"] == 0.01 and b.stats()["alpha"] == 0.5 and b.stats()["levels"] == 2
+    assert a.stats()["levels"] == 3 and sum(b.stats()["clusters_per_level"]) < sum(a.stats()["clusters_per_level"])
+    with pytest.raises(LightcutsError, match=r"^ray caster.maxp: ray caster 'hug' has no parameter 'maxp'"):
+        make_caster((v, f), {"type": "hug", "maxp": 3})
+    with pytest.raises(LightcutsError, match=r"^ray caster.maxp: 0 is below the minimum 1"):
+        make_caster((v, f), {"type": "octree", "maxp": 0})

@@ -14,7 +14,7 @@ SMALL = ["--set", "camera.resolution=[24,20]", "--set", "lights.indirect.count=5
 
 def test_casters_side_by_side_and_a_wrong_one_is_counted(tmp_path, scratch_registries):
     from lightcuts.accel import RAY_CASTERS
-    from lightcuts.accel.embree import EmbreeCaster
+    from lightcuts.accel.embree.embree import EmbreeCaster
 
     class MissesEveryOtherRay(EmbreeCaster):
         def intersect(self, org, dirs, tnear=0.0, tfar=np.inf):

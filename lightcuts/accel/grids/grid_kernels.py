@@ -1,4 +1,4 @@
-"""numba traversal of nested uniform grids (lightcuts.accel.grids): closest hit and occlusion.
+"""numba traversal of nested uniform grids (lightcuts.accel.grids.grids): closest hit and occlusion.
 
 Per grid, the 3D DDA of Amanatides and Woo (1987): the ray enters the grid's box, starts in the
 voxel holding its entry point, and steps to the neighbour across the nearest voxel boundary (each
@@ -14,11 +14,11 @@ Mailbox: each ray has an id (a counter in the scratch), and a small open-address
 ray has tested, so a triangle referenced by several voxels is tested once (if the probed slots are
 all taken by the ray's other triangles it is tested again, which is only slower).
 
-Triangles: the watertight test of Woop, Benthin and Wald (lightcuts.accel.bvh_kernels.watertight_t),
+Triangles: the watertight test of Woop, Benthin and Wald (lightcuts.accel.triangles.watertight_t),
 so no ray slips through an edge shared by two triangles.
 
 Caster data ``(GRID_TAG, lo, hi, res, cell, inv, voxel0, vox_items, item_refs, vox_subs, sub_refs, tri, meta)``
-(the device functions are registered with lightcuts.accel.kernel_api under ``lightcuts.grid``):
+(:data:`GRID_DEVICE`, kernel name ``lightcuts.grid``, the ``device`` of every grid caster's entry):
 the forest's arrays, cell and inv (G, 3) float64 (extent / n and n / extent, 0 on a flat axis),
 ``tri (F, 9)`` float64 triangle corners, ``meta`` (3,) float64 = (scene scale, stack levels,
 mailbox slots). The scratch (float64) is the ray counter, the mailbox and a stack of
@@ -31,9 +31,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from lightcuts.accel.bvh_kernels import ray_frame, watertight_t
-from lightcuts.accel.kernel_api import register_kernel_caster
+from lightcuts.accel.kernel_api import DeviceFunctions
 from lightcuts.accel.packets import mark_lane_occluded, packet_get_ray
+from lightcuts.accel.triangles import ray_frame, watertight_t
 from lightcuts.parallel import on_threads
 
 TOL = 1e-9
@@ -215,9 +215,9 @@ def grid_packet_occluded(data, scratch, pk, width, n):
             mark_lane_occluded(pk, width, lane)
 
 
-#: First element of a grid caster's kernel data (lightcuts.accel.kernel_api).
-GRID_TAG = register_kernel_caster("lightcuts.grid", grid_intersect, grid_occluded, grid_packet_occluded,
-                                  grid_new_scratch)
+#: The grid casters' device functions (their registry entries declare them) and the first element of their data.
+GRID_DEVICE = DeviceFunctions("lightcuts.grid", grid_intersect, grid_occluded, grid_packet_occluded, grid_new_scratch)
+GRID_TAG = GRID_DEVICE.tag
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

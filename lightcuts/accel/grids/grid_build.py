@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from lightcuts.accel.grids import GridForest, assemble, cube_root_res, fill_grids
+from lightcuts.accel.grids.grids import GridForest, assemble, cube_root_res, fill_grids
 
 #: A subdivision is made only if its non-empty sub-voxels hold on average at most this fraction of
 #: the voxel's items (or only one sub-voxel is non-empty).

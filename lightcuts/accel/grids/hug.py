@@ -11,7 +11,7 @@ Bottom-up and without a parameter to tune:
    fbar_k = (f_k + f_{k+1}) / 2 (the paper's average length of the level); :func:`cluster3d` applies
    it along x, y, z in turn until a set is stable on all three axes, with the paper's double stack.
    The work of its sorts, sum N_i log N_i / (n log n), is reported (the paper measured 3 to 5).
-3. A grid per cluster by the cube-root criterion (lightcuts.accel.grids), and the grid World over the
+3. A grid per cluster by the cube-root criterion (lightcuts.accel.grids.grids), and the grid World over the
    top level's objects and every cluster (2 n voxels: it holds the largest object).
 4. The hierarchy (2.3, Fig. 9), level by level from the larger sizes down: each cluster's grid goes
    into the finest grid already placed that contains it, and is referenced by every voxel of that
@@ -25,8 +25,8 @@ import math
 import numpy as np
 from numba import njit
 
-from lightcuts.accel.grid_build import scene_box
-from lightcuts.accel.grids import _range, assemble, cube_root_res, fill_grids, grid_inv
+from lightcuts.accel.grids.grid_build import scene_box
+from lightcuts.accel.grids.grids import voxel_range, assemble, cube_root_res, fill_grids, grid_inv
 
 #: The paper's defaults: three filter levels, alpha = 0.01.
 LEVELS = 3
@@ -157,9 +157,9 @@ def _insert(glo, ghi, gres, voxel0):
         P = 0
         while True:
             inv = grid_inv(glo[P], ghi[P], gres[P])
-            ix, _ = _range(glo[g, 0], glo[g, 0], glo[P, 0], gres[P, 0], inv[0])
-            iy, _ = _range(glo[g, 1], glo[g, 1], glo[P, 1], gres[P, 1], inv[1])
-            iz, _ = _range(glo[g, 2], glo[g, 2], glo[P, 2], gres[P, 2], inv[2])
+            ix, _ = voxel_range(glo[g, 0], glo[g, 0], glo[P, 0], gres[P, 0], inv[0])
+            iy, _ = voxel_range(glo[g, 1], glo[g, 1], glo[P, 1], gres[P, 1], inv[1])
+            iz, _ = voxel_range(glo[g, 2], glo[g, 2], glo[P, 2], gres[P, 2], inv[2])
             v = voxel0[P] + ix + gres[P, 0] * (iy + gres[P, 1] * iz)
             found = -1
             p = head[v]
@@ -175,9 +175,9 @@ def _insert(glo, ghi, gres, voxel0):
             P = found
         parent[g] = P
         inv = grid_inv(glo[P], ghi[P], gres[P])
-        x0, x1 = _range(glo[g, 0], ghi[g, 0], glo[P, 0], gres[P, 0], inv[0])
-        y0, y1 = _range(glo[g, 1], ghi[g, 1], glo[P, 1], gres[P, 1], inv[1])
-        z0, z1 = _range(glo[g, 2], ghi[g, 2], glo[P, 2], gres[P, 2], inv[2])
+        x0, x1 = voxel_range(glo[g, 0], ghi[g, 0], glo[P, 0], gres[P, 0], inv[0])
+        y0, y1 = voxel_range(glo[g, 1], ghi[g, 1], glo[P, 1], gres[P, 1], inv[1])
+        z0, z1 = voxel_range(glo[g, 2], ghi[g, 2], glo[P, 2], gres[P, 2], inv[2])
         for iz in range(z0, z1 + 1):
             for iy in range(y0, y1 + 1):
                 for ix in range(x0, x1 + 1):

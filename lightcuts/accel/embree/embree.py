@@ -2,10 +2,10 @@
 
 ``embree`` loads the libembree4 that the embreex wheel ships, builds the scene through Embree's C
 API (ROBUST flag) and casts rays in ``@njit(parallel=True)`` kernels calling ``rtcIntersect1`` /
-``rtcOccluded1`` (lightcuts/accel/embree_kernels.py): all cores, a real per-ray tnear, and per-ray
+``rtcOccluded1`` (lightcuts/accel/embree/embree_kernels.py): all cores, a real per-ray tnear, and per-ray
 calls usable from other kernels through ``kernel_handles`` (and ``rtcOccluded8`` packets through
 ``packet_handles``). This relies on Embree 4's C ABI and
-RTCRayHit layout; tests/test_accel.py compares it against embreex's own ``scene.run`` so a layout
+RTCRayHit layout; tests/accel/test_accel.py compares it against embreex's own ``scene.run`` so a layout
 change fails loudly.
 
 ``embreex`` is embreex's batch ``scene.run``: one core, tnear emulated by moving the origin along
@@ -25,7 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from lightcuts.accel.base import KernelCaster, RayCaster, check_mesh, check_rays
-from lightcuts.accel.registry import RAY_CASTERS
+from lightcuts.accel.embree.embree_kernels import EMBREE_DEVICE, EMBREE_TAG
+from lightcuts.accel.registry import register_caster
 from lightcuts.errors import LightcutsError
 
 # Embree 4 C API constants (rtcore_common.h, rtcore_geometry.h, rtcore_scene.h, rtcore_device.h).
@@ -125,7 +126,7 @@ def embree_version() -> str:
     return f"{v // 10000}.{v // 100 % 100}.{v % 100}"
 
 
-@RAY_CASTERS.register("embree", kernel_callable=True)
+@register_caster("embree", device=EMBREE_DEVICE, warm_render_kernel=True)
 class EmbreeCaster(RayCaster):
     """Embree 4 through ctypes, rays cast by numba kernels on all cores.
 
@@ -208,12 +209,6 @@ class EmbreeCaster(RayCaster):
         if getattr(self, "_lib", None) is not None:
             self.close()
 
-    def __enter__(self) -> "EmbreeCaster":
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.close()
-
     def _scene_handle(self) -> int:
         if self._scene is None:
             raise LightcutsError("ray caster 'embree': used after close()")
@@ -221,13 +216,13 @@ class EmbreeCaster(RayCaster):
 
     @property
     def kernel_handles(self) -> tuple:
-        """``(intersect1, occluded1, scene)`` for lightcuts.accel.embree_kernels.ray_intersect /
+        """``(intersect1, occluded1, scene)`` for lightcuts.accel.embree.embree_kernels.ray_intersect /
         ray_occluded: ctypes functions and the scene handle (int). Valid until :meth:`close`."""
         return self._lib.intersect1, self._lib.occluded1, self._scene_handle()
 
     @property
     def packet_handles(self) -> tuple:
-        """``(occluded_n, width, scene)`` for lightcuts.accel.embree_kernels.packet_occluded:
+        """``(occluded_n, width, scene)`` for lightcuts.accel.embree.embree_kernels.packet_occluded:
         ``rtcOccluded8`` (width 8) or, where the processor lacks native 8-wide packets,
         ``rtcOccluded4`` (width 4). Valid until :meth:`close`."""
         return self._lib.occluded_n, self._lib.packet_width, self._scene_handle()
@@ -236,14 +231,12 @@ class EmbreeCaster(RayCaster):
     def kernel_caster(self) -> KernelCaster:
         """The :class:`~lightcuts.accel.base.KernelCaster` over Embree: per-ray ``rtcIntersect1`` /
         ``rtcOccluded1``, packets through ``rtcOccluded8`` (or 4). Valid until :meth:`close`."""
-        from lightcuts.accel.embree_kernels import EMBREE_TAG
-
         lib = self._lib
         return KernelCaster((EMBREE_TAG, lib.intersect1, lib.occluded1, lib.occluded_n, self._scene_handle()),
                             lib.packet_width)
 
     def intersect(self, org, dirs, tnear=0.0, tfar=np.inf):
-        from lightcuts.accel.embree_kernels import intersect_rays
+        from lightcuts.accel.embree.embree_kernels import intersect_rays
 
         org, dirs, tnear, tfar = check_rays(org, dirs, tnear, tfar)
         scene = self._scene_handle()
@@ -254,7 +247,7 @@ class EmbreeCaster(RayCaster):
         return t, prim
 
     def occluded(self, org, dirs, tnear=0.0, tfar=np.inf):
-        from lightcuts.accel.embree_kernels import occluded_rays
+        from lightcuts.accel.embree.embree_kernels import occluded_rays
 
         org, dirs, tnear, tfar = check_rays(org, dirs, tnear, tfar)
         scene = self._scene_handle()
@@ -264,7 +257,7 @@ class EmbreeCaster(RayCaster):
         return out
 
 
-@RAY_CASTERS.register("embreex", kernel_callable=False)
+@register_caster("embreex", kernel_callable=False)
 class EmbreexCaster(RayCaster):
     """embreex's batch ``scene.run``: one core; tnear emulated by moving the origin along the ray.
 

@@ -2,11 +2,11 @@ r"""numba kernels that call Embree 4 (``rtcIntersect1`` / ``rtcOccluded1``) per 
 ``rtcOccluded4`` / ``rtcOccluded8`` per packet of shadow rays.
 
 The project's kernels (the cut evaluator, the reference, the particle tracer) reach these through
-lightcuts.accel.kernel_api: the device functions at the bottom are registered there as the kernel
-caster ``lightcuts.embree`` (data ``(EMBREE_TAG, intersect1, occluded1, occluded_n, scene)`` from
+lightcuts.accel.kernel_api: the device functions at the bottom are the ``device`` of the ``embree``
+registry entry, kernel name ``lightcuts.embree`` (data ``(EMBREE_TAG, intersect1, occluded1, occluded_n, scene)`` from
 ``EmbreeCaster.kernel_caster``). The raw per-ray functions below also serve kernels written against
 Embree alone, with the handles; the batch kernels are what
-:class:`lightcuts.accel.embree.EmbreeCaster` runs for its ``intersect`` / ``occluded``.
+:class:`lightcuts.accel.embree.embree.EmbreeCaster` runs for its ``intersect`` / ``occluded``.
 
 Handles
 -------
@@ -54,7 +54,7 @@ Example: a kernel in another module
     import numpy as np
     from numba import njit, prange
 
-    from lightcuts.accel.embree_kernels import new_ray_buffer, ray_intersect, ray_occluded
+    from lightcuts.accel.embree.embree_kernels import new_ray_buffer, ray_intersect, ray_occluded
 
     CHUNK = 64
 
@@ -89,7 +89,7 @@ Example: a kernel in another module
     visible_hits(intersect1, occluded1, handle, org, dirs, light, t, prim, lit)
 
 Such a kernel caches like any other: a second process loads it from numba's cache without
-recompiling (``tests/test_accel.py::test_kernel_in_another_module_is_cached`` checks this).
+recompiling (``tests/accel/test_accel.py::test_kernel_in_another_module_is_cached`` checks this).
 """
 
 from __future__ import annotations
@@ -97,7 +97,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from lightcuts.accel.kernel_api import register_kernel_caster
+from lightcuts.accel.kernel_api import DeviceFunctions
 from lightcuts.accel.packets import (INVALID_ID, PACKET_FIELDS, PACKET_FLOATS, lane_occluded,  # noqa: F401
                                      new_ray_packet, packet_set_ray, _address, _load_u32, _store_u32)
 
@@ -241,6 +241,7 @@ def embree_packet_occluded(data, buf, pk, width, n):
     packet_occluded(data[3], width, data[4], pk, n)
 
 
-#: First element of the Embree caster's kernel data.
-EMBREE_TAG = register_kernel_caster("lightcuts.embree", embree_intersect, embree_occluded, embree_packet_occluded,
-                                    embree_new_scratch)
+#: The Embree caster's device functions (its registry entry declares them) and the first element of its data.
+EMBREE_DEVICE = DeviceFunctions("lightcuts.embree", embree_intersect, embree_occluded, embree_packet_occluded,
+                                embree_new_scratch)
+EMBREE_TAG = EMBREE_DEVICE.tag

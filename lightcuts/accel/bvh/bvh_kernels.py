@@ -1,23 +1,15 @@
-r"""numba kernels of the BVH casters: the watertight ray-triangle test and the traversals.
+r"""numba kernels of the BVH casters: the traversals, with the watertight ray-triangle test of
+lightcuts.accel.triangles.
 
-Ray-triangle test: Woop, Benthin and Wald, "Watertight Ray/Triangle Intersection" (JCGT 2013). The
-ray's largest direction component becomes z (axes kx, ky, kz, swapped to keep the winding); the
-triangle's vertices, relative to the origin, are sheared so the ray is the +z axis, and three edge
-functions U, V, W (2D cross products of sheared vertex pairs) decide the hit: all >= 0 or all <= 0.
-A sheared vertex depends only on the vertex and the ray, and the edge function of an edge shared by
-two triangles is computed from the same two values (exactly negated on the other side), so a ray
-through a shared edge or vertex hits at least one of its triangles: none slips through a closed
-mesh. Everything is float64 on the float32 vertices, which stands in for the paper's
-double-precision fallback; an edge function of exactly 0 counts as inside on both sides.
-
-Traversal: the BVH's depth-first arrays (lightcuts.accel.bvh); at an internal node both children's
+Traversal: the BVH's depth-first arrays (lightcuts.accel.bvh.bvh); at an internal node both children's
 boxes are tested (a slab test widened by ``SLACK`` relative, so rounding never culls a box a hit
 lies in; a 0 * inf NaN from a ray in a slab plane leaves that slab unbounded), the nearer child is
 visited and the farther pushed with its entry distance; a popped node beyond the closest hit so far
 is skipped. Occlusion stops at the first hit (any hit). The stack lives in the caster's scratch
 (float64, ``2 * (depth + 1)``: node index and entry t per level), so it cannot overflow.
 
-Kernel caster ``lightcuts.bvh`` (lightcuts.accel.kernel_api), shared by every BVH caster; its data
+Kernel caster ``lightcuts.bvh`` (lightcuts.accel.kernel_api; :data:`BVH_DEVICE`, the ``device`` of every
+BVH caster's registry entry); its data
 ``(BVH_TAG, lo, hi, right, prim, tri, stack)``: the BVH's node arrays (left child = node + 1),
 ``tri (F, 9) float64`` the corners of each triangle, and the stack depth as int64.
 """
@@ -27,60 +19,12 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from lightcuts.accel.kernel_api import register_kernel_caster
+from lightcuts.accel.kernel_api import DeviceFunctions
 from lightcuts.accel.packets import mark_lane_occluded, packet_get_ray
+from lightcuts.accel.triangles import ray_frame, watertight_t
 
 #: Relative widening of the slab test's interval.
 SLACK = 1e-9
-
-
-@njit(cache=True, forceinline=True, error_model="numpy")
-def ray_frame(dx, dy, dz):
-    """Woop et al.'s permutation (kx, ky, kz) and shear (sx, sy, sz) for direction d."""
-    ax, ay, az = abs(dx), abs(dy), abs(dz)
-    kz = 0
-    if ay > ax and ay >= az:
-        kz = 1
-    elif az > ax and az > ay:
-        kz = 2
-    kx = (kz + 1) % 3
-    ky = (kx + 1) % 3
-    dkz = dz if kz == 2 else (dy if kz == 1 else dx)
-    if dkz < 0.0:
-        kx, ky = ky, kx
-    dkx = dz if kx == 2 else (dy if kx == 1 else dx)
-    dky = dz if ky == 2 else (dy if ky == 1 else dx)
-    return kx, ky, kz, dkx / dkz, dky / dkz, 1.0 / dkz
-
-
-@njit(cache=True, forceinline=True, error_model="numpy")
-def watertight_t(tri, f, ox, oy, oz, kx, ky, kz, sx, sy, sz):
-    """Hit distance of the ray (origin o; frame from :func:`ray_frame`) with triangle f of
-    ``tri (F, 9)``, or inf if it misses (or lies in the triangle's plane). t may be negative."""
-    ax_ = tri[f, kx] - (ox if kx == 0 else (oy if kx == 1 else oz))
-    ay_ = tri[f, ky] - (ox if ky == 0 else (oy if ky == 1 else oz))
-    az_ = tri[f, kz] - (ox if kz == 0 else (oy if kz == 1 else oz))
-    bx_ = tri[f, 3 + kx] - (ox if kx == 0 else (oy if kx == 1 else oz))
-    by_ = tri[f, 3 + ky] - (ox if ky == 0 else (oy if ky == 1 else oz))
-    bz_ = tri[f, 3 + kz] - (ox if kz == 0 else (oy if kz == 1 else oz))
-    cx_ = tri[f, 6 + kx] - (ox if kx == 0 else (oy if kx == 1 else oz))
-    cy_ = tri[f, 6 + ky] - (ox if ky == 0 else (oy if ky == 1 else oz))
-    cz_ = tri[f, 6 + kz] - (ox if kz == 0 else (oy if kz == 1 else oz))
-    ax = ax_ - sx * az_
-    ay = ay_ - sy * az_
-    bx = bx_ - sx * bz_
-    by = by_ - sy * bz_
-    cx = cx_ - sx * cz_
-    cy = cy_ - sy * cz_
-    u = cx * by - cy * bx
-    v = ax * cy - ay * cx
-    w = bx * ay - by * ax
-    if (u < 0.0 or v < 0.0 or w < 0.0) and (u > 0.0 or v > 0.0 or w > 0.0):
-        return np.inf
-    det = u + v + w
-    if det == 0.0:
-        return np.inf
-    return (u * sz * az_ + v * sz * bz_ + w * sz * cz_) / det
 
 
 @njit(cache=True, forceinline=True, error_model="numpy")
@@ -218,24 +162,6 @@ def occluded_rays(data, org, dirs, tnear, tfar, out):
                                   tnear[i], tfar[i])
 
 
-@njit(parallel=True, cache=True, error_model="numpy")
-def brute_force_rays(tri, org, dirs, tnear, tfar, t_out, prim_out):
-    """Closest hit of each ray over ALL triangles with :func:`watertight_t` (the test reference);
-    ties keep the lowest triangle id."""
-    n = org.shape[0]
-    for i in prange(n):
-        ox, oy, oz, dx, dy, dz = org[i, 0], org[i, 1], org[i, 2], dirs[i, 0], dirs[i, 1], dirs[i, 2]
-        kx, ky, kz, sx, sy, sz = ray_frame(dx, dy, dz)
-        best_t = np.inf
-        best = -1
-        for f in range(tri.shape[0]):
-            t = watertight_t(tri, f, ox, oy, oz, kx, ky, kz, sx, sy, sz)
-            if t != np.inf and tnear[i] <= t <= tfar[i] and (best < 0 or t < best_t):
-                best_t = t
-                best = f
-        t_out[i] = best_t
-        prim_out[i] = best
-
-
-#: First element of a BVH caster's kernel data.
-BVH_TAG = register_kernel_caster("lightcuts.bvh", bvh_intersect, bvh_occluded, bvh_packet_occluded, bvh_new_scratch)
+#: The BVH casters' device functions (their registry entries declare them) and the first element of their data.
+BVH_DEVICE = DeviceFunctions("lightcuts.bvh", bvh_intersect, bvh_occluded, bvh_packet_occluded, bvh_new_scratch)
+BVH_TAG = BVH_DEVICE.tag

@@ -1,11 +1,12 @@
-"""Grid ray casters: ``grid``, ``recursive-grid-{50,100,150}``, ``octree-{50,100,150}`` and ``hug``.
+"""Grid ray casters: ``grid``, ``recursive-grid``, ``octree`` and ``hug``.
 
-All four structures are nested uniform grids (lightcuts.accel.grids) traversed by the same kernels
-(lightcuts.accel.grid_kernels), as in the comparison of Cazals et al. 1995 (section 3). All are
-kernel-callable: they render, trace particles and render the reference like ``embree``. Parameters
-are part of the caster's name, so a study selects them with ``render.ray_caster`` alone:
-``recursive-grid`` and ``octree`` are MAXP 50 (aliases of the ``-50`` names). Other values: build a
-:class:`GridCaster` with :func:`build_forest` directly.
+All four structures are nested uniform grids (lightcuts.accel.grids.grids) traversed by the same
+kernels (lightcuts.accel.grids.grid_kernels), as in the comparison of Cazals et al. 1995 (section 3).
+All are kernel-callable: they render, trace particles and render the reference like ``embree``.
+Parameters are declared in the registry (a config names them as ``render.ray_caster: {type:
+recursive-grid, maxp: 150}``): ``recursive-grid`` and ``octree`` read ``maxp`` and ``max_depth``,
+``hug`` reads ``alpha`` and ``levels``, ``grid`` nothing. The names of the paper's sweep,
+``recursive-grid-50/100/150`` and ``octree-50/100/150``, are aliases with ``maxp`` fixed.
 """
 
 from __future__ import annotations
@@ -15,24 +16,27 @@ import time
 import numpy as np
 
 from lightcuts.accel.base import KernelCaster, RayCaster, check_mesh, check_rays
-from lightcuts.accel.bvh import triangle_boxes
-from lightcuts.accel.grid_build import build_recursive, build_uniform
-from lightcuts.accel.grids import GridForest
-from lightcuts.accel.hug import ALPHA, LEVELS, build_hug
-from lightcuts.accel.registry import RAY_CASTERS
+from lightcuts.accel.grids.grid_build import build_recursive, build_uniform
+from lightcuts.accel.grids.grid_kernels import GRID_DEVICE, GRID_TAG, MAILBOX
+from lightcuts.accel.grids.grids import GridForest
+from lightcuts.accel.grids.hug import ALPHA, LEVELS, build_hug
+from lightcuts.accel.packets import PACKET_WIDTH
+from lightcuts.accel.registry import register_caster
+from lightcuts.accel.triangles import triangle_boxes, triangle_corners
 from lightcuts.errors import LightcutsError
+from lightcuts.registry import Param
 
 #: Depth limits (grids on a chain, the top grid counting 1): Cazals et al. saw recursive grids at
 #: most 5 deep and octrees 10 to 20 deep.
 RECURSIVE_DEPTH = 5
 OCTREE_DEPTH = 16
-#: MAXP values registered for the comparators (the paper's sweep).
+#: Default MAXP (items a voxel holds before it is subdivided) of the comparators.
+MAXP = 50
+#: MAXP values of the paper's sweep, registered as aliases ``recursive-grid-50``, ...
 MAXPS = (50, 100, 150)
-#: Lanes per packet call (the grids cast a packet's rays one by one).
-PACKET_WIDTH = 8
 
 
-def build_forest(vertices, faces, kind: str, maxp: int = 50, max_depth: int | None = None,
+def build_forest(vertices, faces, kind: str, maxp: int = MAXP, max_depth: int | None = None,
                  levels: int = LEVELS, alpha: float = ALPHA) -> tuple[GridForest, dict]:
     """The structure ``kind`` ("grid", "recursive-grid", "octree", "hug") over a checked mesh, and
     its build facts (``build_s`` and, for hug, the filter and clustering figures)."""
@@ -58,7 +62,7 @@ def build_forest(vertices, faces, kind: str, maxp: int = 50, max_depth: int | No
 
 
 class GridCaster(RayCaster):
-    """Closest hit and occlusion through a :class:`~lightcuts.accel.grids.GridForest` in numba.
+    """Closest hit and occlusion through a :class:`~lightcuts.accel.grids.grids.GridForest` in numba.
 
     vertices (V, 3), faces (F, 3): the mesh (vertices used as float32, like Embree's); kind and the
     parameters as :func:`build_forest`; forest: an already built (e.g. loaded) forest instead.
@@ -78,15 +82,12 @@ class GridCaster(RayCaster):
             self.info = {"build_s": 0.0}
         self.forest = forest
         self._depth = forest.depth
-        v = vertices.astype(np.float64)
-        tri = np.ascontiguousarray(v[faces.astype(np.int64)].reshape(-1, 9))
+        tri = triangle_corners(vertices, faces)
         ext = forest.hi - forest.lo
         res = forest.res.astype(np.float64)
         cell = np.ascontiguousarray(ext / res)
         inv = np.ascontiguousarray(np.where(ext > 0, res / np.where(ext > 0, ext, 1.0), 0.0))
         scale = float(np.abs(np.concatenate([forest.lo[0], forest.hi[0]])).max() + np.linalg.norm(ext[0])) or 1.0
-        from lightcuts.accel.grid_kernels import GRID_TAG, MAILBOX
-
         meta = np.array([scale, self._depth, MAILBOX], np.float64)
         self._data = (GRID_TAG, forest.lo, forest.hi, forest.res, cell, inv, forest.voxel0, forest.vox_items,
                       forest.item_refs, forest.vox_subs, forest.sub_refs, tri, meta)
@@ -98,7 +99,7 @@ class GridCaster(RayCaster):
         return cls(vertices, faces, kind=forest.kind, forest=forest)
 
     def save(self, path) -> None:
-        """Save the grids (.npz, keys in lightcuts.accel.grids)."""
+        """Save the grids (.npz, keys in lightcuts.accel.grids.grids)."""
         self.forest.save(path)
 
     def stats(self) -> dict:
@@ -123,39 +124,44 @@ class GridCaster(RayCaster):
         return KernelCaster(self._data, PACKET_WIDTH)
 
     def intersect(self, org, dirs, tnear=0.0, tfar=np.inf):
-        from lightcuts.accel.grid_kernels import intersect_rays
+        from lightcuts.accel.grids.grid_kernels import intersect_rays
 
         org, dirs, tnear, tfar = check_rays(org, dirs, tnear, tfar)
         return intersect_rays(self._data, org, dirs, tnear, tfar)
 
     def occluded(self, org, dirs, tnear=0.0, tfar=np.inf):
-        from lightcuts.accel.grid_kernels import occluded_rays
+        from lightcuts.accel.grids.grid_kernels import occluded_rays
 
         org, dirs, tnear, tfar = check_rays(org, dirs, tnear, tfar)
         return occluded_rays(self._data, org, dirs, tnear, tfar)
 
 
-def _factory(name: str, kind: str, doc: str, **params):
-    def factory(vertices, faces):
-        return GridCaster(vertices, faces, kind=kind, name=name, **params)
+def _factory(kind: str, doc: str):
+    def factory(vertices, faces, **params):
+        return GridCaster(vertices, faces, kind=kind, **params)
 
     factory.__doc__ = doc
-    factory.__name__ = "caster_" + name.replace("-", "_")
+    factory.__name__ = "caster_" + kind.replace("-", "_")
     return factory
 
 
+def _comparator_params(depth: int) -> dict:
+    return {"maxp": Param(int, MAXP, lo=1, hi=1 << 31, doc="items a voxel holds before it becomes a sub-grid"),
+            "max_depth": Param(int, depth, lo=1, hi=64, doc="grids on a chain at most, the top grid counting 1")}
+
+
 def register_grid_casters() -> None:
-    """Register the grid casters (module docstring) in RAY_CASTERS."""
-    RAY_CASTERS.register("grid", _factory("grid", "grid", "one uniform grid, cube-root criterion (about F voxels)"),
-                         kernel_callable=True)
-    RAY_CASTERS.register("hug", _factory("hug", "hug", "hierarchy of uniform grids (Cazals et al. 1995): "
-                                         "3 filter levels, alpha 0.01"), kernel_callable=True)
+    """Register the grid casters (module docstring)."""
+    register_caster("grid", _factory("grid", "one uniform grid, cube-root criterion (about F voxels)"),
+                    device=GRID_DEVICE)
+    register_caster("hug", _factory("hug", "hierarchy of uniform grids (Cazals et al. 1995)"), device=GRID_DEVICE,
+                    params={"alpha": Param(float, ALPHA, lo=1e-9, hi=1e3, doc="clustering gap over the level's mean "
+                                                                      "object size (> 0)"),
+                            "levels": Param(int, LEVELS, lo=1, hi=64, doc="filter levels (object sizes)")})
     for kind, depth, what in (("recursive-grid", RECURSIVE_DEPTH, "recursive grid (Jevans and Wyvill 1989)"),
                               ("octree", OCTREE_DEPTH, "object octree")):
-        for maxp in MAXPS:
-            name = f"{kind}-{maxp}"
-            RAY_CASTERS.register(name, _factory(name, kind, f"{what}, MAXP {maxp}, depth limit {depth}", maxp=maxp),
-                                 aliases=(kind,) if maxp == MAXPS[0] else (), kernel_callable=True)
+        register_caster(kind, _factory(kind, what), device=GRID_DEVICE, params=_comparator_params(depth),
+                        aliases={f"{kind}-{m}": {"maxp": m} for m in MAXPS})
 
 
 register_grid_casters()

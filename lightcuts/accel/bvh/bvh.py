@@ -3,7 +3,7 @@
 :class:`FlatBVH` holds the nodes in depth-first order (structure of arrays): node 0 is the root, an
 internal node's left child is the node right after it and ``right[i]`` is its right child, so a
 subtree occupies one contiguous range. Boxes are float64: they hold the float32 vertices of the
-mesh exactly, and the traversal's conservative slab test (lightcuts.accel.bvh_kernels) then never
+mesh exactly, and the traversal's conservative slab test (lightcuts.accel.bvh.bvh_kernels) then never
 culls a box a triangle's hit lies in.
 
 A builder returns only a topology, in the convention of the light-tree builders
@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from lightcuts.accel.triangles import triangle_boxes
 from lightcuts.errors import LightcutsError
 from lightcuts.io import read_npz, save_npz
 
@@ -248,12 +249,6 @@ def _flatten(left, right, prim, root, tri_lo, tri_hi, out_lo, out_hi, out_left, 
                 out_lo[i, a] = min(out_lo[l, a], out_lo[r, a])
                 out_hi[i, a] = max(out_hi[l, a], out_hi[r, a])
     return 0
-
-
-def triangle_boxes(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
-    """Per-triangle boxes lo, hi (F, 3) float64 of the mesh as the casters see it (float32 vertices)."""
-    v = np.asarray(vertices, np.float32).astype(np.float64)[np.asarray(faces, np.int64)]
-    return np.ascontiguousarray(v.min(axis=1)), np.ascontiguousarray(v.max(axis=1))
 
 
 def from_topology(left, right, prim, root, vertices, faces, builder: str = "") -> FlatBVH:

@@ -4,7 +4,7 @@ Top-down: at each node the triangles' centroid box is cut along its longest axis
 equal bins; of the 15 planes between bins the one of least ``SA(L) N(L) + SA(R) N(R)`` (boxes of the
 triangles' own boxes on each side) is taken. A node of one triangle is a leaf. Where all centroids
 coincide the triangles are halved by index. The result is a topology in the builders' convention
-(lightcuts.accel.bvh, :func:`~lightcuts.accel.bvh.from_topology`): leaves 0..F-1 hold triangles
+(lightcuts.accel.bvh.bvh, :func:`~lightcuts.accel.bvh.bvh.from_topology`): leaves 0..F-1 hold triangles
 0..F-1, internal nodes F..2F-2.
 """
 

@@ -168,7 +168,7 @@ def cube_root_res(lo, hi, n):
 
 
 @njit(cache=True)
-def _range(a, b, lo, n, inv):
+def voxel_range(a, b, lo, n, inv):
     """Voxel range [i0, i1] along one axis of a grid (lo, n voxels, inv = n / extent or 0) that the
     closed interval [a, b] overlaps, clamped to the grid; an end within EDGE of a voxel boundary
     counts for the voxels on both sides."""
@@ -208,9 +208,9 @@ def fill_grids(glo, ghi, gres, item_start, items, blo, bhi):
             nx, ny = gres[g, 0], gres[g, 1]
             for j in range(item_start[g], item_start[g + 1]):
                 f = items[j]
-                x0, x1 = _range(blo[f, 0], bhi[f, 0], glo[g, 0], gres[g, 0], inv[0])
-                y0, y1 = _range(blo[f, 1], bhi[f, 1], glo[g, 1], gres[g, 1], inv[1])
-                z0, z1 = _range(blo[f, 2], bhi[f, 2], glo[g, 2], gres[g, 2], inv[2])
+                x0, x1 = voxel_range(blo[f, 0], bhi[f, 0], glo[g, 0], gres[g, 0], inv[0])
+                y0, y1 = voxel_range(blo[f, 1], bhi[f, 1], glo[g, 1], gres[g, 1], inv[1])
+                z0, z1 = voxel_range(blo[f, 2], bhi[f, 2], glo[g, 2], gres[g, 2], inv[2])
                 for iz in range(z0, z1 + 1):
                     for iy in range(y0, y1 + 1):
                         for ix in range(x0, x1 + 1):

@@ -1,13 +1,13 @@
-"""BVH ray casters in numba: a topology builder + lightcuts.accel.bvh + lightcuts.accel.bvh_kernels.
+"""BVH ray casters in numba: a topology builder + lightcuts.accel.bvh.bvh + lightcuts.accel.bvh.bvh_kernels.
 
 Each caster name pairs :class:`BVHCaster` with one topology builder, a function
 ``builder(lo (F,3) float64, hi (F,3) float64) -> (left, right, prim, root)`` over the triangles'
-boxes in the light-tree builders' convention (lightcuts.accel.bvh). :func:`register_bvh_caster` is
-the hook: ``bvh-sah`` is the binned SAH builder (lightcuts.accel.bvh_build); another clustering
+boxes in the light-tree builders' convention (lightcuts.accel.bvh.bvh). :func:`register_bvh_caster` is
+the hook: ``bvh-sah`` is the binned SAH builder (lightcuts.accel.bvh.bvh_build); another clustering
 registers the same class under its own name with ``register_bvh_caster(name, builder)``;
 ``bvh-agglomerative`` and ``bvh-agglomerative-heap`` are the 2008 paper's locally-ordered (Fig. 4)
 and heap (Fig. 3) clusterings with the surface area of the union's box as the dissimilarity
-(lightcuts.accel.bvh_agglomerative). All are
+(lightcuts.accel.bvh.bvh_agglomerative). None has parameters. All are
 kernel-callable (:attr:`BVHCaster.kernel_caster`), so they render, trace particles and render the
 reference like ``embree``.
 """
@@ -17,18 +17,18 @@ from __future__ import annotations
 import numpy as np
 
 from lightcuts.accel.base import KernelCaster, RayCaster, check_mesh, check_rays
-from lightcuts.accel.bvh_agglomerative import bvh_agglomerative, bvh_agglomerative_heap
-from lightcuts.accel.bvh import FlatBVH, from_topology, triangle_boxes
-from lightcuts.accel.bvh_build import build_binned_sah
-from lightcuts.accel.registry import RAY_CASTERS
+from lightcuts.accel.bvh.bvh import FlatBVH, from_topology
+from lightcuts.accel.bvh.bvh_agglomerative import bvh_agglomerative, bvh_agglomerative_heap
+from lightcuts.accel.bvh.bvh_build import build_binned_sah
+from lightcuts.accel.bvh.bvh_kernels import BVH_DEVICE, BVH_TAG
+from lightcuts.accel.packets import PACKET_WIDTH
+from lightcuts.accel.registry import register_caster
+from lightcuts.accel.triangles import triangle_boxes, triangle_corners
 from lightcuts.errors import LightcutsError
-
-#: Lanes per packet call (the BVH casts a packet's rays one by one).
-PACKET_WIDTH = 8
 
 
 class BVHCaster(RayCaster):
-    """Closest hit and occlusion by traversing a :class:`~lightcuts.accel.bvh.FlatBVH` in numba.
+    """Closest hit and occlusion by traversing a :class:`~lightcuts.accel.bvh.bvh.FlatBVH` in numba.
 
     vertices (V, 3), faces (F, 3) : the mesh (vertices used as float32, like Embree's)
     builder : topology builder (module docstring); name : its name, stored in the BVH
@@ -48,10 +48,7 @@ class BVHCaster(RayCaster):
                                  f"{self.n_faces}")
         self.bvh = bvh
         self.name = name
-        v = vertices.astype(np.float64)
-        self._tri = np.ascontiguousarray(v[faces.astype(np.int64)].reshape(-1, 9))
-        from lightcuts.accel.bvh_kernels import BVH_TAG
-
+        self._tri = triangle_corners(vertices, faces)
         self._data = (BVH_TAG, bvh.lo, bvh.hi, bvh.right, bvh.prim, self._tri, np.int64(bvh.depth + 1))
 
     @classmethod
@@ -61,7 +58,7 @@ class BVHCaster(RayCaster):
         return cls(vertices, faces, name=bvh.builder or "bvh", bvh=bvh)
 
     def save(self, path) -> None:
-        """Save the BVH (.npz, keys in lightcuts.accel.bvh)."""
+        """Save the BVH (.npz, keys in lightcuts.accel.bvh.bvh)."""
         self.bvh.save(path)
 
     def stats(self) -> dict:
@@ -70,21 +67,12 @@ class BVHCaster(RayCaster):
         s = self.bvh.sah_stats()
         return {**s, "memory_bytes": s["memory_bytes"] + self._tri.nbytes}
 
-    def close(self) -> None:
-        """Nothing to release (numpy arrays); for symmetry with the Embree caster."""
-
-    def __enter__(self) -> "BVHCaster":
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.close()
-
     @property
     def kernel_caster(self) -> KernelCaster:
         return KernelCaster(self._data, PACKET_WIDTH)
 
     def intersect(self, org, dirs, tnear=0.0, tfar=np.inf):
-        from lightcuts.accel.bvh_kernels import intersect_rays
+        from lightcuts.accel.bvh.bvh_kernels import intersect_rays
 
         org, dirs, tnear, tfar = check_rays(org, dirs, tnear, tfar)
         t = np.empty(len(org), np.float64)
@@ -94,7 +82,7 @@ class BVHCaster(RayCaster):
         return t, prim
 
     def occluded(self, org, dirs, tnear=0.0, tfar=np.inf):
-        from lightcuts.accel.bvh_kernels import occluded_rays
+        from lightcuts.accel.bvh.bvh_kernels import occluded_rays
 
         org, dirs, tnear, tfar = check_rays(org, dirs, tnear, tfar)
         out = np.empty(len(org), np.bool_)
@@ -112,7 +100,7 @@ def register_bvh_caster(name: str, builder, description: str, replace: bool = Fa
 
     factory.__doc__ = description
     factory.__name__ = f"bvh_caster_{name.replace('-', '_')}"
-    RAY_CASTERS.register(name, factory, kernel_callable=True, description=description, replace=replace)
+    register_caster(name, factory, device=BVH_DEVICE, description=description, replace=replace)
     return factory
 
 
