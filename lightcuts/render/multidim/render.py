@@ -125,7 +125,7 @@ def _check(camera, crop, pixels, spp, eps, max_cut, clamp_min_distance, seed, ap
     if focus_distance is not None and not (focus_distance > 0 and math.isfinite(focus_distance)):
         raise LightcutsError(f"camera.focus_distance: {focus_distance} must be a finite number > 0")
     if int(representatives) != representatives or not 1 <= representatives <= 64:
-        raise LightcutsError(f"render.representatives: {representatives} must be an integer from 1 to 64")
+        raise LightcutsError(f"render.integrator.representatives: {representatives} must be an integer from 1 to 64")
     return x0, y0, x1, y1, pix
 
 
