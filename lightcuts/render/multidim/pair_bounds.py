@@ -34,7 +34,7 @@ def cone_cos_over_box(a0, a1, a2, cone_cos, lo0, lo1, lo2, hi0, hi1, hi2):
     return min(1.0, num / np.sqrt(qq))
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", forceinline=True)
 def pair_bound_rgb(gn, g, node_b, node_bi, k, clamp_d2):
     """Bound of the pair (gather node g of gn, light node k of the forest's records), per RGB channel.
 
@@ -88,7 +88,7 @@ def _times(a, s):
     return a * s if a > 0.0 and s > 0.0 else 0.0
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", forceinline=True)
 def point_bound_rgb(gp, i, node_b, node_bi, k, clamp_d2):
     """Bound of the pair (gather point i of gp, light node k): the lightcut's bound at the point
     (lightcuts.render.bounds.cluster_error_bound_framed) times the point's weight."""
@@ -111,7 +111,7 @@ def point_bound_rgb(gp, i, node_b, node_bi, k, clamp_d2):
     return _times(b0, w), _times(b1, w), _times(b2, w)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", forceinline=True)
 def pair_bound(gp, gn, gk, g, node_b, node_bi, k, light_leaf, clamp_d2):
     """Bound of the pair (gather node g, light node k) in luminance-ready RGB: 0 for a pair of two
     leaves (its estimate is exact), else :func:`point_bound_rgb` for a gather leaf (g is then the

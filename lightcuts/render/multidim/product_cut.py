@@ -49,7 +49,7 @@ def light_representatives(node_f, node_k, r_count, seed, lreps):
             lreps[k, r] = lreps[a, r] if u * (la + lb) < la else lreps[b, r]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", forceinline=True)
 def _mgv(gp, g, j, light_f, clamp_d2, ray_offset, visibility, cdata, buf):
     """M G V (RGB), clamp ratio and shadow rays of light j at gather point g (light_mgv)."""
     return light_mgv(j, light_f, gp[g, GP_POS], gp[g, GP_POS + 1], gp[g, GP_POS + 2], gp[g, GP_NRM],
@@ -58,7 +58,7 @@ def _mgv(gp, g, j, light_f, clamp_d2, ray_offset, visibility, cdata, buf):
                      gp[g, GP_RS + 2], gp[g, GP_EXP], clamp_d2, ray_offset, visibility, cdata, buf)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", forceinline=True)
 def refine_gather(gn, gk, g, node_b, node_bi, k):
     """True to split the pair (g, k) on the gather side: the side that is not a leaf, else the one of
     larger size. Sizes in world units: a light node's box diagonal; a gather node's box diagonal plus
