@@ -227,3 +227,14 @@ def test_aperture_zero_is_the_pinhole_and_lens_rays_meet_in_the_plane_of_focus(c
                                       focus_distance=123.0)
     assert zero.image.tobytes() == pinhole.image.tobytes()
     assert not np.allclose(blurred.image, pinhole.image)
+
+
+def test_bad_inputs_raise_one_line_errors(cornell):
+    from lightcuts.errors import LightcutsError
+
+    scene, caster, camera, lights, trees = cornell
+    for kwargs, key in [(dict(aperture=-1.0), "camera.aperture"), (dict(focus_distance=0.0), "camera.focus_distance"),
+                        (dict(representatives=0), "render.integrator.representatives"), (dict(spp=0), "render.spp")]:
+        with pytest.raises(LightcutsError, match=key) as e:
+            render_multidimensional(scene, caster, lights, trees, camera=camera, **kwargs)
+        assert "\n" not in str(e.value)
