@@ -106,6 +106,10 @@ class CameraConfig(Strict):
     up: Vec3 | None = None
     fov: Annotated[float, Field(gt=0, lt=180)] | None = None
     resolution: Resolution | None = None
+    # Thin lens (render.integrator multidimensional): lens radius, world units (0: pinhole), and the
+    # distance along the view direction that is in focus (None: |look_at - position|).
+    aperture: Annotated[float, Field(ge=0, le=MAX_COORD)] = 0.0
+    focus_distance: Annotated[float, Field(gt=0, le=MAX_COORD)] | None = None
 
     @field_validator("resolution")
     @classmethod

@@ -64,6 +64,51 @@ def eye_ray(cam, seed, px, py, s, sx, sy):
     return d0 / norm, d1 / norm, d2 / norm
 
 
+@njit(cache=True, error_model="numpy")
+def _disk(u, v):
+    """Shirley's concentric map of the unit square onto the unit disk (area-preserving)."""
+    a, b = 2.0 * u - 1.0, 2.0 * v - 1.0
+    if a == 0.0 and b == 0.0:
+        return 0.0, 0.0
+    if abs(a) > abs(b):
+        r, phi = a, (np.pi / 4.0) * (b / a)
+    else:
+        r, phi = b, np.pi / 2.0 - (np.pi / 4.0) * (a / b)
+    return r * np.cos(phi), r * np.sin(phi)
+
+
+@njit(cache=True, error_model="numpy")
+def lens_ray(cam, seed, px, py, s, sx, sy, aperture, focus):
+    """Origin and unit direction of sample s of pixel (px, py) through a thin lens.
+
+    aperture : lens radius, world units (0: exactly :func:`eye_ray` from the camera position);
+    focus : distance along the view axis of the plane in focus, world units. The lens position is
+    stratified over the same sx x sy grid (mapped to the disk), its stratum a per-pixel random
+    cyclic shift of s, so pixel and lens strata are paired differently in every pixel.
+    """
+    d0, d1, d2 = eye_ray(cam, seed, px, py, s, sx, sy)
+    o0, o1, o2 = cam[CAM_POSITION], cam[CAM_POSITION + 1], cam[CAM_POSITION + 2]
+    if aperture <= 0.0:
+        return o0, o1, o2, d0, d1, d2
+    spp = sx * sy
+    pixel = np.int64(py) * np.int64(cam[CAM_WIDTH]) + np.int64(px)
+    t = (s + np.int64(hash_uniform(seed, pixel, spp, 2) * spp)) % spp
+    u = (t % sx + hash_uniform(seed, pixel, s, 2)) / sx
+    v = (t // sx + hash_uniform(seed, pixel, s, 3)) / sy
+    lx, ly = _disk(u, v)
+    lx, ly = lx * aperture, ly * aperture
+    # The pinhole ray meets the plane of focus at f; the lens ray aims at the same point.
+    cos_f = d0 * cam[CAM_FORWARD] + d1 * cam[CAM_FORWARD + 1] + d2 * cam[CAM_FORWARD + 2]
+    k = focus / cos_f
+    f0, f1, f2 = o0 + k * d0, o1 + k * d1, o2 + k * d2
+    o0 += lx * cam[CAM_RIGHT] + ly * cam[CAM_UP]
+    o1 += lx * cam[CAM_RIGHT + 1] + ly * cam[CAM_UP + 1]
+    o2 += lx * cam[CAM_RIGHT + 2] + ly * cam[CAM_UP + 2]
+    e0, e1, e2 = f0 - o0, f1 - o1, f2 - o2
+    norm = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+    return o0, o1, o2, e0 / norm, e1 / norm, e2 / norm
+
+
 def camera_params(camera) -> np.ndarray:
     """(16,) float64 kernel parameters of a lightcuts.scene.Camera (layout: the ``CAM_*`` offsets).
 

@@ -1,0 +1,80 @@
+"""Multidimensional lightcuts against per-eye-ray lightcuts on a config at a reduced size.
+
+Times (kernels loaded on one pixel first, untimed): lightcuts at 1 spp and at N spp, multidimensional
+at N gather points; pairs per pixel; per-pixel luminance error of the N-spp images against the
+N-point brute-force reference (the same eye rays) on a seeded sample of pixels.
+
+    PYTHONPATH=. python benchmarks/bench_multidim.py configs/cornell.yaml --size 128 --spp 16 --pixels 200
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+
+def main() -> None:
+    from lightcuts.commands.plan import plan_run
+    from lightcuts.config.schema import load_config
+    from lightcuts.lights.lightset import LUMINANCE
+    from lightcuts.render.integrator import render_image
+    from lightcuts.render.multidim import render_multidimensional, render_multidimensional_reference
+    from lightcuts.scene.scene import Camera
+
+    p = argparse.ArgumentParser()
+    p.add_argument("config")
+    p.add_argument("--size", type=int, default=128)
+    p.add_argument("--spp", type=int, default=16)
+    p.add_argument("--pixels", type=int, default=200)
+    p.add_argument("--set", dest="overrides", action="append", default=[])
+    a = p.parse_args()
+    cfg = load_config(a.config, a.overrides)
+    plan = plan_run(cfg, render=True)
+    scene = plan.scene()
+    c = scene.camera
+    w = a.size
+    h = max(1, round(a.size * c.height / c.width))
+    camera = Camera(c.position, c.look_at, c.up, c.fov, w, h)
+    caster = plan.make_caster(scene)
+    lights = plan.lights(scene, caster, None)
+    t0 = time.perf_counter()
+    trees = plan.trees(lights)
+    print(f"lights {sum(len(v) for v in lights.values())}, trees {time.perf_counter() - t0:.1f} s")
+    common = dict(camera=camera, seed=cfg.seed, clamp=cfg.render.clamp.enabled,
+                  clamp_min_distance=cfg.render.clamp.min_distance)
+    cut = dict(eps=cfg.render.eps, max_cut=cfg.render.max_cut)
+
+    def timed(fn, *args, **kw):
+        fn(*args, **{**kw, "crop": (0, 0, 1, 1)})  # load the kernel
+        t = time.perf_counter()
+        r = fn(*args, **kw)
+        return r, time.perf_counter() - t
+
+    lc1, t1 = timed(render_image, scene, caster, lights, trees, spp=1, **common, **cut)
+    lcn, tn = timed(render_image, scene, caster, lights, trees, spp=a.spp, **common, **cut)
+    md, tm = timed(render_multidimensional, scene, caster, lights, trees, spp=a.spp, **common, **cut)
+    print(f"lightcuts 1 spp {t1:.2f} s (cut {lc1.cut_size.mean():.0f}); lightcuts {a.spp} spp {tn:.2f} s "
+          f"(cut per eye ray {lcn.cut_size.mean():.0f}, per pixel {a.spp * lcn.cut_size.mean():.0f}); "
+          f"multidimensional {a.spp} {tm:.2f} s (pairs per pixel {md.cut_size.mean():.0f}, "
+          f"shadow rays per pixel {md.shadow_rays / (w * h):.0f})")
+    print(f"time ratios: md/lc1 {tm / t1:.2f}, lc{a.spp}/md {tn / tm:.2f}")
+    lum = md.image @ LUMINANCE
+    rng = np.random.default_rng(cfg.seed)
+    lit = np.argwhere(lum > 1e-3 * lum.max())
+    pick = lit[rng.choice(len(lit), min(a.pixels, len(lit)), replace=False)]
+    pix = pick[:, ::-1].copy()  # (x, y)
+    t = time.perf_counter()
+    ref = render_multidimensional_reference(scene, caster, lights, spp=a.spp, pixels=pix, **common)
+    print(f"reference on {len(pix)} pixels: {time.perf_counter() - t:.1f} s")
+    r = (ref.image[:, 0] @ LUMINANCE).astype(np.float64)
+    for name, img in (("multidimensional", md.image), (f"lightcuts {a.spp} spp", lcn.image)):
+        v = (img[pick[:, 0], pick[:, 1]] @ LUMINANCE).astype(np.float64)
+        err = np.abs(v - r) / r
+        print(f"{name}: error median {np.median(err):.4f}, p99 {np.percentile(err, 99):.4f}, max {err.max():.4f}")
+    caster.close()
+
+
+if __name__ == "__main__":
+    main()

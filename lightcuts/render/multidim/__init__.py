@@ -1,0 +1,6 @@
+"""Multidimensional lightcuts (Walter, Arbree, Bala, Greenberg 2006): per pixel, gather points over
+the pixel and the lens, a gather tree over them, and one cut through the product of the gather tree
+and the light trees."""
+
+from lightcuts.render.multidim.render import (DEFAULT_REPRESENTATIVES, render_multidimensional,  # noqa: F401
+                                              render_multidimensional_reference)

@@ -1,0 +1,71 @@
+r"""Gather points of one pixel: the hits of its ``spp`` eye rays (pixel strata, thin lens).
+
+A gather point is one eye-ray hit that reflects light: its row in ``gp`` ((spp, GP_WIDTH) float64
+scratch) holds position, unit shading normal N (facing the eye), mirror direction R of wo,
+RGB rho_d and rho_s, Phong exponent and weight 1 / spp (its share of the pixel). Misses (the
+environment map) and the fronts of emitters (their emitted radiance) add radiance directly, as
+lightcuts.render.integrator does for each eye ray; the front of an emitter is a gather point too
+(it reflects light), its back is black and is none.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from lightcuts.accel.kernel_api import intersect
+from lightcuts.lights.environment import envmap_radiance
+from lightcuts.render.camera import lens_ray
+from lightcuts.render.shading import facing_normal, reflect
+
+# Columns of a gather point's row: position, normal, mirror direction, rho_d, rho_s, exponent, weight.
+GP_POS, GP_NRM, GP_REFL, GP_RD, GP_RS, GP_EXP, GP_W, GP_WIDTH = 0, 3, 6, 9, 12, 15, 16, 17
+
+
+@njit(cache=True, error_model="numpy")
+def pixel_gather(cdata, buf, cam, seed, spp, sx, sy, px, py, aperture, focus, face_normal, albedo, specular,
+                 exponent, emission, env_pixels, env_rotation, env_scale, gp):
+    """Cast pixel (px, py)'s eye rays and fill gp's first rows with its gather points.
+
+    cam, seed, spp, sx, sy : as lightcuts.render.camera.eye_ray; aperture, focus : the thin lens
+    (lightcuts.render.camera.lens_ray, 0: pinhole); face_normal, albedo, specular, exponent,
+    emission : the scene's per-triangle arrays; env_* : the environment map ((0, 0, 3): none).
+    Returns ``(n, r, g, b)``: the number of gather points and the radiance added directly, summed
+    over the eye rays (not yet divided by spp).
+    """
+    a0 = 0.0
+    a1 = 0.0
+    a2 = 0.0
+    n = 0
+    w = 1.0 / spp
+    for s in range(spp):
+        o0, o1, o2, d0, d1, d2 = lens_ray(cam, seed, px, py, s, sx, sy, aperture, focus)
+        t, prim = intersect(cdata, buf, o0, o1, o2, d0, d1, d2, 0.0, np.inf)
+        if prim < 0:
+            if env_pixels.shape[0] > 0:
+                e0, e1, e2 = envmap_radiance(env_pixels, env_rotation, env_scale, d0, d1, d2)
+                a0 += e0
+                a1 += e1
+                a2 += e2
+            continue
+        f0, f1, f2 = face_normal[prim, 0], face_normal[prim, 1], face_normal[prim, 2]
+        e0, e1, e2 = emission[prim, 0], emission[prim, 1], emission[prim, 2]
+        if e0 > 0.0 or e1 > 0.0 or e2 > 0.0:
+            if f0 * d0 + f1 * d1 + f2 * d2 >= 0.0:
+                continue  # the back of an emitter is black
+            a0 += e0
+            a1 += e1
+            a2 += e2
+        n0, n1, n2 = facing_normal(f0, f1, f2, -d0, -d1, -d2)
+        r0, r1, r2 = reflect(-d0, -d1, -d2, n0, n1, n2)
+        row = gp[n]
+        row[GP_POS], row[GP_POS + 1], row[GP_POS + 2] = o0 + t * d0, o1 + t * d1, o2 + t * d2
+        row[GP_NRM], row[GP_NRM + 1], row[GP_NRM + 2] = n0, n1, n2
+        row[GP_REFL], row[GP_REFL + 1], row[GP_REFL + 2] = r0, r1, r2
+        for c in range(3):
+            row[GP_RD + c] = albedo[prim, c]
+            row[GP_RS + c] = specular[prim, c]
+        row[GP_EXP] = exponent[prim]
+        row[GP_W] = w
+        n += 1
+    return n, a0, a1, a2

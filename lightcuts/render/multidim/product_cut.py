@@ -1,0 +1,212 @@
+r"""The multidimensional cut of one pixel: refining (gather node, light node) pairs by their bounds.
+
+The pixel's reflected radiance is the sum over gather points i and lights j of
+``w_i M_ij G_ij V_ij I_j``. A pair (G, L) of a gather node and a light node stands for all its
+(i, j); its estimate is ``W_G I_L (M G V)(g, j)`` with the representative gather point g of G and
+the representative light j of L chosen for g (multiple representatives: ``lreps[L, g % R]``), and
+its bound is lightcuts.render.multidim.pair_bounds'. The cut starts at (gather root, each light
+tree's root) and replaces the pair with the largest bound by its two children on the gather or the
+light side (:func:`refine_gather`) until every bound is <= eps times the pixel's total (luminance)
+or the cut holds max_cut pairs. A child pair with the parent's (g, j) reuses its M G V: no new
+shadow ray. docs/math.md, "Multidimensional lightcuts".
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from lightcuts.render.camera import hash_uniform
+from lightcuts.render.cut import light_mgv, luminance
+from lightcuts.render.bounds import DIRECTIONAL
+from lightcuts.render.forest import NB_HI, NB_I, NB_LEFT, NB_LO, NB_REP, NF_I, NK_LEFT, NK_REP, NK_RIGHT, REP_BITS
+from lightcuts.render.heap import SLOT_MASK, entry_bound, heap_entry, heap_push, sift_down
+from lightcuts.render.multidim.gather import GP_EXP, GP_NRM, GP_POS, GP_RD, GP_REFL, GP_RS, GP_W
+from lightcuts.render.multidim.gather_tree import GK_LEFT, GK_REP, GN_ANG, GN_HI, GN_LO, GN_W
+from lightcuts.render.multidim.pair_bounds import pair_bound
+from lightcuts.render.reference import all_lights
+
+
+@njit(cache=True, nogil=True)
+def light_representatives(node_f, node_k, r_count, seed, lreps):
+    """lreps ((K, R) int64): R representatives per light node. Column 0 is the tree's own; column r
+    is built like it, bottom up: a parent takes its left child's column-r representative with
+    probability I_left / I (luminance), else the right one's (seeded by node and column), so each is
+    a light of the node drawn with probability proportional to its intensity, and a parent's is
+    always one of its children's."""
+    for k in range(node_f.shape[0] - 1, -1, -1):
+        a = node_k[k, NK_LEFT]
+        if a < 0:
+            for r in range(r_count):
+                lreps[k, r] = node_k[k, NK_REP]
+            continue
+        b = node_k[k, NK_RIGHT]
+        la = luminance(node_f[a, NF_I], node_f[a, NF_I + 1], node_f[a, NF_I + 2])
+        lb = luminance(node_f[b, NF_I], node_f[b, NF_I + 1], node_f[b, NF_I + 2])
+        lreps[k, 0] = node_k[k, NK_REP]
+        for r in range(1, r_count):
+            u = hash_uniform(seed, k, r, 3)
+            lreps[k, r] = lreps[a, r] if u * (la + lb) < la else lreps[b, r]
+
+
+@njit(cache=True, error_model="numpy", forceinline=True)
+def _mgv(gp, g, j, light_f, clamp_d2, ray_offset, visibility, cdata, buf):
+    """M G V (RGB), clamp ratio and shadow rays of light j at gather point g (light_mgv)."""
+    return light_mgv(j, light_f, gp[g, GP_POS], gp[g, GP_POS + 1], gp[g, GP_POS + 2], gp[g, GP_NRM],
+                     gp[g, GP_NRM + 1], gp[g, GP_NRM + 2], gp[g, GP_REFL], gp[g, GP_REFL + 1], gp[g, GP_REFL + 2],
+                     gp[g, GP_RD], gp[g, GP_RD + 1], gp[g, GP_RD + 2], gp[g, GP_RS], gp[g, GP_RS + 1],
+                     gp[g, GP_RS + 2], gp[g, GP_EXP], clamp_d2, ray_offset, visibility, cdata, buf)
+
+
+@njit(cache=True, error_model="numpy", forceinline=True)
+def refine_gather(gn, gk, g, node_b, node_bi, k):
+    """True to split the pair (g, k) on the gather side: the side that is not a leaf, else the one of
+    larger size. Sizes in world units: a light node's box diagonal; a gather node's box diagonal plus
+    its normal cone's half-angle times the distance between the two boxes' centres (a spread of
+    normals matters as much as a spread of positions seen from there). For directional lights,
+    angles: the gather cone's half-angle against the light's box diagonal (a box of directions)."""
+    if gk[g, GK_LEFT] < 0:
+        return False
+    if node_bi[k, NB_LEFT] < 0:
+        return True
+    lsize = 0.0
+    gsize = 0.0
+    dist2 = 0.0
+    for c in range(3):
+        lo, hi = np.float64(node_b[k, NB_LO + c]), np.float64(node_b[k, NB_HI + c])
+        lsize += (hi - lo) ** 2
+        gsize += (gn[g, GN_HI + c] - gn[g, GN_LO + c]) ** 2
+        dist2 += (0.5 * (lo + hi - gn[g, GN_LO + c] - gn[g, GN_HI + c])) ** 2
+    if (node_bi[k, NB_REP] >> REP_BITS) >> 1 == DIRECTIONAL:
+        return gn[g, GN_ANG] > np.sqrt(lsize)
+    return np.sqrt(gsize) + gn[g, GN_ANG] * np.sqrt(dist2) > np.sqrt(lsize)
+
+
+@njit(cache=True, error_model="numpy")
+def product_cut(gp, gn, gk, groot, node_b, node_bi, roots, light_f, lreps, eps, max_cut, clamp_d2, ray_offset,
+                visibility, cdata, buf, heap, slot_g, slot_l, slot_rep, slot_mgv, slot_ratio):
+    """Reflected radiance of the pixel whose gather tree is (gp, gn, gk, groot).
+
+    node_b, node_bi, roots, light_f : the forest (lightcuts.render.forest); lreps : (K, R)
+    :func:`light_representatives`; eps, max_cut : the stop test; clamp_d2, ray_offset, visibility,
+    cdata, buf : as lightcuts.render.cut.light_mgv; heap (uint64), slot_g, slot_l, slot_rep (int64,
+    the pair's light representative), slot_mgv (cap, 3), slot_ratio : scratch for
+    max(max_cut, roots) + 2 pairs.
+    Returns ``(L_r, L_g, L_b, pairs, shadow_rays, clamp_lost)`` like lightcuts.render.cut.lightcut,
+    pairs = pairs in the final cut.
+    """
+    r_count = lreps.shape[1]
+    n_slots = np.int64(0)
+    size = np.int64(0)
+    rays = 0
+    t0 = 0.0
+    t1 = 0.0
+    t2 = 0.0
+    grep = gk[groot, GK_REP]
+    for t in range(roots.shape[0]):
+        k = roots[t]
+        j = lreps[k, grep % r_count]
+        m0, m1, m2, ratio, nr = _mgv(gp, grep, j, light_f, clamp_d2, ray_offset, visibility, cdata, buf)
+        rays += nr
+        w = _weight(gp, gn, gk, groot)
+        slot_g[n_slots], slot_l[n_slots], slot_rep[n_slots] = groot, k, j
+        slot_mgv[n_slots, 0], slot_mgv[n_slots, 1], slot_mgv[n_slots, 2] = m0, m1, m2
+        slot_ratio[n_slots] = ratio
+        t0 += w * m0 * node_b[k, NB_I]
+        t1 += w * m1 * node_b[k, NB_I + 1]
+        t2 += w * m2 * node_b[k, NB_I + 2]
+        b0, b1, b2 = pair_bound(gp, gn, gk, groot, node_b, node_bi, k, node_bi[k, NB_LEFT] < 0, clamp_d2)
+        b = luminance(b0, b1, b2)
+        if b > 0.0:
+            size = heap_push(heap, size, heap_entry(b, n_slots))
+            heap[size] = 0
+        n_slots += 1
+    while size > 0 and n_slots < max_cut:
+        if entry_bound(heap[0]) <= eps * luminance(t0, t1, t2):
+            break
+        s = np.int64(heap[0] & SLOT_MASK)
+        size -= 1
+        key = heap[size]
+        heap[size] = 0
+        if size > 0:
+            sift_down(heap, size, key)
+        g, k, pj = slot_g[s], slot_l[s], slot_rep[s]
+        pg = gk[g, GK_REP]
+        w = _weight(gp, gn, gk, g)
+        t0 -= w * slot_mgv[s, 0] * node_b[k, NB_I]
+        t1 -= w * slot_mgv[s, 1] * node_b[k, NB_I + 1]
+        t2 -= w * slot_mgv[s, 2] * node_b[k, NB_I + 2]
+        pm0, pm1, pm2, pratio = slot_mgv[s, 0], slot_mgv[s, 1], slot_mgv[s, 2], slot_ratio[s]
+        split_g = refine_gather(gn, gk, g, node_b, node_bi, k)
+        for side in range(2):
+            if split_g:
+                cg, ck = gk[g, GK_LEFT + side], k
+            else:
+                cg, ck = g, np.int64(node_bi[k, NB_LEFT]) + side
+            cs = s if side == 0 else n_slots
+            rg = gk[cg, GK_REP]
+            j = lreps[ck, rg % r_count]
+            if rg == pg and j == pj:
+                m0, m1, m2, ratio = pm0, pm1, pm2, pratio
+            else:
+                m0, m1, m2, ratio, nr = _mgv(gp, rg, j, light_f, clamp_d2, ray_offset, visibility, cdata, buf)
+                rays += nr
+            w = _weight(gp, gn, gk, cg)
+            slot_g[cs], slot_l[cs], slot_rep[cs] = cg, ck, j
+            slot_mgv[cs, 0], slot_mgv[cs, 1], slot_mgv[cs, 2] = m0, m1, m2
+            slot_ratio[cs] = ratio
+            t0 += w * m0 * node_b[ck, NB_I]
+            t1 += w * m1 * node_b[ck, NB_I + 1]
+            t2 += w * m2 * node_b[ck, NB_I + 2]
+            b0, b1, b2 = pair_bound(gp, gn, gk, cg, node_b, node_bi, ck, node_bi[ck, NB_LEFT] < 0, clamp_d2)
+            b = luminance(b0, b1, b2)
+            if b > 0.0:
+                size = heap_push(heap, size, heap_entry(b, cs))
+                heap[size] = 0
+        n_slots += 1
+    # The final sum again, from the cut itself: the running total drifts by cancellation.
+    t0 = 0.0
+    t1 = 0.0
+    t2 = 0.0
+    lost = 0.0
+    for s in range(n_slots):
+        k = slot_l[s]
+        w = _weight(gp, gn, gk, slot_g[s])
+        e0 = w * slot_mgv[s, 0] * node_b[k, NB_I]
+        e1 = w * slot_mgv[s, 1] * node_b[k, NB_I + 1]
+        e2 = w * slot_mgv[s, 2] * node_b[k, NB_I + 2]
+        t0 += e0
+        t1 += e1
+        t2 += e2
+        lost += (slot_ratio[s] - 1.0) * luminance(e0, e1, e2)
+    return t0, t1, t2, n_slots, rays, lost
+
+
+@njit(cache=True, error_model="numpy", forceinline=True)
+def _weight(gp, gn, gk, g):
+    """Summed weight W_G of gather node g (a leaf's row in gn holds its point's weight too)."""
+    return gn[g, GN_W]
+
+
+@njit(cache=True, error_model="numpy")
+def all_pairs(gp, n, light_f, light_i, clamp_d2, ray_offset, visibility, cdata, buf):
+    """The brute-force sum over every gather point (gp's first n rows) and every light: the pixel's
+    reflected radiance the product cut approximates. Returns ``(L_r, L_g, L_b, pairs, shadow_rays,
+    clamp_lost)``."""
+    t0 = 0.0
+    t1 = 0.0
+    t2 = 0.0
+    lost = 0.0
+    rays = 0
+    for i in range(n):
+        r = all_lights(gp[i, GP_POS], gp[i, GP_POS + 1], gp[i, GP_POS + 2], gp[i, GP_NRM], gp[i, GP_NRM + 1],
+                       gp[i, GP_NRM + 2], gp[i, GP_REFL], gp[i, GP_REFL + 1], gp[i, GP_REFL + 2], gp[i, GP_RD],
+                       gp[i, GP_RD + 1], gp[i, GP_RD + 2], gp[i, GP_RS], gp[i, GP_RS + 1], gp[i, GP_RS + 2],
+                       gp[i, GP_EXP], light_f, light_i, clamp_d2, ray_offset, visibility, cdata, buf)
+        w = gp[i, GP_W]
+        t0 += w * r[0]
+        t1 += w * r[1]
+        t2 += w * r[2]
+        rays += r[4]
+        lost += w * r[5]
+    return t0, t1, t2, n * light_f.shape[0], rays, lost

@@ -1,0 +1,240 @@
+"""Multidimensional lightcuts: pair bounds, gather trees, the product cut against the lightcut and
+the brute-force sum over the same gather points, determinism and the thin lens.
+
+A small glossy Cornell box (24 x 24 pixels, about 360 direct and indirect lights).
+"""
+
+import numpy as np
+import pytest
+
+from lightcuts.accel import make_caster
+from lightcuts.lights.direct import direct_lights
+from lightcuts.lights.indirect import indirect_lights
+from lightcuts.lights.lightset import LUMINANCE, LightSet
+from lightcuts.render.bounds import DIRECTIONAL, ORIENTED
+from lightcuts.render.camera import camera_params, eye_ray, lens_ray, strata
+from lightcuts.render.forest import LF_POS, NK_LEFT, NK_REP, NK_RIGHT, build_forest
+from lightcuts.render.integrator import render_image
+from lightcuts.render.multidim import render_multidimensional, render_multidimensional_reference
+from lightcuts.render.multidim.gather import (GP_EXP, GP_NRM, GP_POS, GP_RD, GP_REFL, GP_RS, GP_W, GP_WIDTH)
+from lightcuts.render.multidim.gather_tree import (GK_LEFT, GK_REP, GK_RIGHT, GN_EMAX, GN_EMIN, GN_HI, GN_LO,
+                                                   GN_NAX, GN_NCOS, GN_RAX, GN_RCOS, GN_RD, GN_RS, GN_W, GN_WIDTH,
+                                                   build_gather_tree)
+from lightcuts.render.multidim.pair_bounds import pair_bound
+from lightcuts.render.multidim.product_cut import light_representatives
+from lightcuts.render.shading import unshadowed_contribution
+from lightcuts.scene.cornell import cornell_box
+from lightcuts.scene.scene import Camera
+from lightcuts.trees.build import build_tree
+from tests.conftest import random_lights, unit
+
+SIZE = 24
+
+
+@pytest.fixture(scope="module")
+def cornell():
+    scene = cornell_box({"floor": {"specular": [0.3, 0.3, 0.3], "exponent": 40.0}})
+    c = scene.camera
+    camera = Camera(c.position, c.look_at, c.up, c.fov, SIZE, SIZE)
+    caster = make_caster(scene, "embree")
+    lights = LightSet.concatenate([direct_lights(scene, 64, seed=1), indirect_lights(scene, caster, 300, seed=2)])
+    tree = build_tree(lights, "divisive-6d", seed=3)
+    yield scene, caster, camera, {"oriented": lights}, {"oriented": tree}
+    caster.close()
+
+
+def luminance(image):
+    return image.astype(np.float64) @ LUMINANCE
+
+
+def random_gather_points(n, rng, spread=0.3):
+    """n gather points around the origin: random normals, mirror directions and (glossy) materials."""
+    gp = np.zeros((n, GP_WIDTH))
+    gp[:, GP_POS:GP_POS + 3] = rng.random((n, 3)) * spread - spread / 2
+    base = unit(rng.normal(size=3))
+    gp[:, GP_NRM:GP_NRM + 3] = unit(base + rng.normal(size=(n, 3)) * rng.choice([0.05, 1.0]))
+    gp[:, GP_REFL:GP_REFL + 3] = unit(rng.normal(size=(n, 3)) * 0.3 + base)
+    gp[:, GP_RD:GP_RD + 3] = rng.random((n, 3))
+    gp[:, GP_RS:GP_RS + 3] = rng.random((n, 3)) * (rng.random((n, 1)) < 0.5)
+    gp[:, GP_EXP] = rng.choice([0.0, 1.0, 10.0, 80.0], n)
+    gp[:, GP_W] = rng.random(n) + 0.1
+    return gp
+
+
+def build(gp, seed=0):
+    n = len(gp)
+    gn = np.zeros((2 * n, GN_WIDTH))
+    gk = np.zeros((2 * n, 3), np.int64)
+    root = build_gather_tree(gp, n, gn, gk, np.zeros(n, np.int64), np.zeros((2 * n, 3), np.int64), seed, 5)
+    return gn, gk, root
+
+
+def subtree(children, k):
+    """Ids of the leaves below node k; children(k) -> (left, right) or None at a leaf."""
+    out, stack = [], [k]
+    while stack:
+        k = stack.pop()
+        c = children(k)
+        if c is None:
+            out.append(k)
+        else:
+            stack.extend(c)
+    return out
+
+
+@pytest.mark.parametrize("light_type", ["oriented", "omni", "directional"])
+@pytest.mark.parametrize("seed", range(4))
+def test_pair_bound_holds_for_every_pair_it_covers(light_type, seed):
+    rng = np.random.default_rng(seed)
+    ls = random_lights(24, light_type, seed=seed)
+    ls = LightSet(ls.position + (0.0 if light_type == "directional" else 0.4), ls.normal, ls.intensity, light_type,
+                  indirect=rng.random(24) < 0.7)
+    forest = build_forest({light_type: ls}, {light_type: build_tree(ls, "divisive-6d", seed=seed)})
+    nk = forest.node_k
+    gp = random_gather_points(12, rng)
+    gn, gk, root = build(gp, seed)
+    clamp_d2 = 0.01 if seed % 2 else 0.0
+    typ = {"oriented": ORIENTED, "omni": 0, "directional": DIRECTIONAL}[light_type]
+    checked = 0
+    for g in range(2 * len(gp) - 1):
+        points = subtree(lambda k: None if gk[k, GK_LEFT] < 0 else (gk[k, GK_LEFT], gk[k, GK_RIGHT]), g)
+        for k in range(len(nk)):
+            leaves = subtree(lambda k: None if nk[k, NK_LEFT] < 0 else (nk[k, NK_LEFT], nk[k, NK_RIGHT]), k)
+            if len(points) == 1 and len(leaves) == 1:
+                continue  # an exact pair: bound 0
+            b = np.array(pair_bound(gp, gn, gk, g, forest.node_b, forest.node_bi, k, nk[k, NK_LEFT] < 0, clamp_d2))
+            total = np.zeros(3)
+            for i in points:
+                for leaf in leaves:
+                    j = nk[leaf, NK_REP]
+                    c2 = clamp_d2 if ls.indirect[j] else 0.0
+                    p, nl = forest.light_f[j, LF_POS:LF_POS + 3], forest.light_f[j, 3:6]
+                    total += gp[i, GP_W] * np.array(unshadowed_contribution(
+                        typ, *p, *nl, *forest.light_i[j], *gp[i, GP_POS:GP_POS + 3], *gp[i, GP_NRM:GP_NRM + 3],
+                        *gp[i, GP_REFL:GP_REFL + 3], *gp[i, GP_RD:GP_RD + 3], *gp[i, GP_RS:GP_RS + 3], gp[i, GP_EXP],
+                        c2))
+            # The summed contribution (hence every single one) is below the bound; float32 rounding of
+            # the node's intensity (relative 6e-8) is the only slack allowed.
+            assert np.all(total <= b * (1 + 1e-6) + 1e-300), (g, k, total, b)
+            checked += total.sum() > 0
+    assert checked > 50
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 7, 16, 33])
+def test_gather_trees_are_valid(n):
+    rng = np.random.default_rng(n)
+    gp = random_gather_points(n, rng)
+    if n > 3:
+        gp[1, :] = gp[0, :]  # two points on one spot
+    gn, gk, root = build(gp)
+    assert root == (0 if n == 1 else n)
+    children = lambda k: None if gk[k, GK_LEFT] < 0 else (gk[k, GK_LEFT], gk[k, GK_RIGHT])  # noqa: E731
+    assert sorted(subtree(children, root)) == list(range(n))  # every point exactly once
+    for k in range(n, 2 * n - 1):
+        pts = subtree(children, k)
+        a, b = children(k)
+        for c in (a, b):
+            assert np.all(gn[k, GN_LO:GN_LO + 3] <= gn[c, GN_LO:GN_LO + 3])
+            assert np.all(gn[k, GN_HI:GN_HI + 3] >= gn[c, GN_HI:GN_HI + 3])
+            assert np.all(gn[k, GN_RD:GN_RD + 3] >= gn[c, GN_RD:GN_RD + 3])
+            assert np.all(gn[k, GN_RS:GN_RS + 3] >= gn[c, GN_RS:GN_RS + 3])
+        assert np.isclose(gn[k, GN_W], gn[a, GN_W] + gn[b, GN_W])
+        assert np.isclose(gn[k, GN_W], gp[pts, GP_W].sum())
+        assert gn[k, GN_EMIN] == gp[pts, GP_EXP].min() and gn[k, GN_EMAX] == gp[pts, GP_EXP].max()
+        assert gk[k, GK_REP] in pts and gk[k, GK_REP] in (gk[a, GK_REP], gk[b, GK_REP])
+        # The cones hold every normal and every mirror direction below them.
+        for ax, cs, col in ((GN_NAX, GN_NCOS, GP_NRM), (GN_RAX, GN_RCOS, GP_REFL)):
+            cos = gp[pts, col:col + 3] @ gn[k, ax:ax + 3]
+            assert np.all(cos >= gn[k, cs] - 1e-12), (cos.min(), gn[k, cs])
+
+
+def test_light_representatives_are_lights_of_their_node_and_nest(cornell):
+    _, _, _, lights, trees = cornell
+    forest = build_forest(lights, trees)
+    nk = forest.node_k
+    lreps = np.zeros((len(nk), 4), np.int64)
+    light_representatives(forest.node_f, nk, 4, 0, lreps)
+    assert np.array_equal(lreps[:, 0], nk[:, NK_REP])
+    assert len(np.unique(lreps[0])) > 1  # the root's columns differ
+    for k in range(0, len(nk), 7):
+        if nk[k, NK_LEFT] >= 0:
+            leaves = subtree(lambda k: None if nk[k, NK_LEFT] < 0 else (nk[k, NK_LEFT], nk[k, NK_RIGHT]), k)
+            assert set(lreps[k]) <= set(nk[leaves, NK_REP])
+            assert all(lreps[k, r] in (lreps[nk[k, NK_LEFT], r], lreps[nk[k, NK_RIGHT], r]) for r in range(4))
+
+
+def test_one_gather_point_is_the_lightcut(cornell):
+    scene, caster, camera, lights, trees = cornell
+    one = render_image(scene, caster, lights, trees, camera=camera, eps=0.02)
+    md = render_multidimensional(scene, caster, lights, trees, camera=camera, spp=1, eps=0.02)
+    a, b = luminance(md.image), luminance(one.image)
+    assert np.all(np.abs(a - b) <= 0.02 * b + 1e-12)
+    # In fact the same cut: one gather point leaves only the light side to refine.
+    np.testing.assert_allclose(md.image, one.image, rtol=1e-6)
+    np.testing.assert_array_equal(md.cut_size, one.cut_size)
+
+
+def test_refining_everything_gives_the_brute_force_sum(cornell):
+    scene, caster, camera, lights, trees = cornell
+    ref = render_multidimensional_reference(scene, caster, lights, camera=camera, spp=4, seed=3)
+    full = render_multidimensional(scene, caster, lights, trees, camera=camera, spp=4, seed=3, eps=0.0,
+                                   max_cut=10 ** 5)
+    n = len(lights["oriented"])
+    assert ref.cut_size.max() == 4 * n and full.cut_size.max() > n
+    np.testing.assert_allclose(full.image, ref.image, rtol=1e-5, atol=1e-6 * ref.image.max())
+    # With a coarse eps the cut is far smaller and still close.
+    md = render_multidimensional(scene, caster, lights, trees, camera=camera, spp=4, seed=3, eps=0.02)
+    a, b = luminance(md.image), luminance(ref.image)
+    keep = b > 1e-3 * b.max()
+    assert np.median(np.abs(a - b)[keep] / b[keep]) < 0.03
+    assert md.cut_size.mean() < 0.2 * 4 * n
+
+
+def test_same_image_on_any_thread_count_and_for_listed_pixels(cornell, thread_counts):
+    scene, caster, camera, lights, trees = cornell
+    (n1, n2), num_threads = thread_counts
+    kwargs = dict(camera=camera, spp=4, seed=7, aperture=20.0, focus_distance=800.0)
+    with num_threads(n1):
+        one = render_multidimensional(scene, caster, lights, trees, **kwargs)
+    with num_threads(n2):
+        two = render_multidimensional(scene, caster, lights, trees, **kwargs)
+    assert one.image.tobytes() == two.image.tobytes() and one.cut_size.tobytes() == two.cut_size.tobytes()
+    pix = np.array([[23, 0], [3, 9], [20, 13]])
+    some = render_multidimensional(scene, caster, lights, trees, pixels=pix, **kwargs)
+    assert some.image[:, 0].tobytes() == np.ascontiguousarray(one.image[pix[:, 1], pix[:, 0]]).tobytes()
+    other = render_multidimensional(scene, caster, lights, trees, **dict(kwargs, seed=8))
+    assert other.image.tobytes() != one.image.tobytes()
+
+
+def test_aperture_zero_is_the_pinhole_and_lens_rays_meet_in_the_plane_of_focus(cornell):
+    scene, caster, camera, lights, trees = cornell
+    cam = camera_params(camera)
+    sx, sy = strata(16)
+    focus = 700.0
+    fwd = cam[9:12]
+    for px, py, s in [(0, 0, 0), (5, 17, 3), (23, 23, 15)]:
+        d = eye_ray(cam, 4, px, py, s, sx, sy)
+        assert lens_ray(cam, 4, px, py, s, sx, sy, 0.0, focus) == (*cam[0:3], *d)
+        o2 = np.array(lens_ray(cam, 4, px, py, s, sx, sy, 30.0, focus))
+        assert not np.allclose(o2[:3], cam[0:3])
+        pin = cam[0:3] + np.array(d) * focus / np.dot(d, fwd)
+        hit = o2[:3] + o2[3:] * (focus - np.dot(o2[:3] - cam[0:3], fwd)) / np.dot(o2[3:], fwd)
+        np.testing.assert_allclose(hit, pin, atol=1e-6)
+    pinhole = render_multidimensional(scene, caster, lights, trees, camera=camera, spp=4)
+    zero = render_multidimensional(scene, caster, lights, trees, camera=camera, spp=4, aperture=0.0,
+                                   focus_distance=123.0)
+    blurred = render_multidimensional(scene, caster, lights, trees, camera=camera, spp=4, aperture=40.0,
+                                      focus_distance=123.0)
+    assert zero.image.tobytes() == pinhole.image.tobytes()
+    assert not np.allclose(blurred.image, pinhole.image)
+
+
+def test_bad_inputs_raise_one_line_errors(cornell):
+    from lightcuts.errors import LightcutsError
+
+    scene, caster, camera, lights, trees = cornell
+    for kwargs, key in [(dict(aperture=-1.0), "camera.aperture"), (dict(focus_distance=0.0), "camera.focus_distance"),
+                        (dict(representatives=0), "render.integrator.representatives"), (dict(spp=0), "render.spp")]:
+        with pytest.raises(LightcutsError, match=key) as e:
+            render_multidimensional(scene, caster, lights, trees, camera=camera, **kwargs)
+        assert "\n" not in str(e.value)
