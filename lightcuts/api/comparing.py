@@ -6,7 +6,7 @@ lights are made once; per row the trees are built (``Build``: the numba kernels 
 compiled first, on a few lights, and not timed) and the image rendered (``Image time``: after a
 one-pixel render that loads the render kernel). ``Preprocess total`` is the shared scene and light
 time plus the row's build; ``Summed time`` adds the image time. The error is the per-pixel relative
-luminance error against the all-lights reference (:func:`lightcuts.render.integrator.render_reference`)
+luminance error against the integrator's brute-force reference (its ``reference`` trait)
 on one seeded sample of pixels, the same for every row, over the sampled pixels brighter than 1% of
 the sample's mean (:func:`lightcuts.report.images.relative_error`). Finished rows and the reference
 go to a :class:`~lightcuts.report.compare_store.RowStore` when one is given.
@@ -205,7 +205,6 @@ def _reference(cfg, shared, store, pixels, progress: bool) -> dict:
     """The all-lights reference on the pixel sample: {"image": (K, 3), "seconds", "shadow_rays"}."""
     from lightcuts import __version__
     from lightcuts.commands.common import progress_bar, render_settings
-    from lightcuts.render.integrator import render_reference
     from lightcuts.report.compare_store import shared_config, store_key
 
     key = store_key(what="reference", config=shared_config(cfg), pixels=pixels.tolist(), version=__version__)
@@ -218,7 +217,8 @@ def _reference(cfg, shared, store, pixels, progress: bool) -> dict:
                       unit="px") as bar:
         t0 = time.perf_counter()
         settings = {**render_settings(cfg, s.scene.camera, s.envmap), "crop": None}
-        ref = render_reference(s.scene, s.caster, s.lights, progress=bar.update, pixels=pixels, **settings)
+        reference = s.plan.integrator.trait("reference")
+        ref = reference(s.scene, s.caster, s.lights, progress=bar.update, pixels=pixels, **settings)
         seconds = time.perf_counter() - t0
     image = ref.image[:, 0]
     store.save("reference", key, image=image, seconds=np.array(seconds), shadow_rays=np.array(ref.shadow_rays))

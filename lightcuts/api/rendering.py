@@ -102,7 +102,6 @@ def _run(cfg, plan, source, reference: bool, progress: bool, warmup: list) -> Re
     from lightcuts.commands.common import progress_bar, render_settings, render_timed
     from lightcuts.commands.plan import tree_meta
     from lightcuts.commands.warmup import finish_warmup, start_render_warmup
-    from lightcuts.render.integrator import render_reference
     from lightcuts.report.images import relative_error
 
     t0 = time.perf_counter()
@@ -154,6 +153,7 @@ def _run(cfg, plan, source, reference: bool, progress: bool, warmup: list) -> Re
         "jit_seconds": t_jit,
         "build_seconds": t_build,
         "render_seconds": t_render,
+        "cut_size_unit": plan.integrator.trait("cut_unit"),
         "cut_size_mean": float(result.cut_size.mean()),
         "cut_size_max": float(result.cut_size.max()),
         "eye_rays": int(result.eye_rays),
@@ -167,7 +167,7 @@ def _run(cfg, plan, source, reference: bool, progress: bool, warmup: list) -> Re
     if reference:
         with progress_bar(rows, f"{cfg.name}: reference", not progress) as bar:
             t0 = time.perf_counter()
-            ref = render_reference(scene, caster, light_sets, progress=bar.update, **common)
+            ref = plan.integrator.trait("reference")(scene, caster, light_sets, progress=bar.update, **common)
             t_ref = time.perf_counter() - t0
         ref_image = ref.image
         report["reference"] = {"render_seconds": t_ref, "shadow_rays": int(ref.shadow_rays),

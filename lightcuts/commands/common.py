@@ -28,7 +28,8 @@ def render_settings(cfg, camera, envmap=None) -> dict:
     """The keyword arguments of ``render_image`` / ``render_reference`` that the config sets (all but
     eps and max_cut, which the reference does not take)."""
     return dict(camera=camera, spp=cfg.render.spp, envmap=envmap, seed=cfg.seed, crop=cfg.render.crop,
-                clamp=cfg.render.clamp.enabled, clamp_min_distance=cfg.render.clamp.min_distance)
+                clamp=cfg.render.clamp.enabled, clamp_min_distance=cfg.render.clamp.min_distance,
+                aperture=cfg.camera.aperture, focus_distance=cfg.camera.focus_distance)
 
 
 def render_timed(cfg, scene, caster, lights: dict, trees: dict, envmap=None, desc: str = "lightcuts",

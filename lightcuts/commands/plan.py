@@ -103,6 +103,10 @@ def plan_run(cfg: RunConfig, *, render: bool = False, tree: TreeSpec | None = No
         width, height = image_size(cfg, scene_type)
         check_crop(cfg.render.crop, SimpleNamespace(width=width, height=height))
     integrator = INTEGRATORS.resolve(cfg.render.integrator, "render.integrator")
+    if cfg.camera.aperture > 0 and not integrator.trait("lens", False):
+        lens = [e.name for e in INTEGRATORS.entries() if e.trait("lens", False)]
+        raise LightcutsError(f"camera.aperture: integrator {integrator.name!r} renders a pinhole camera only; "
+                             f"use render.integrator: {' or '.join(lens)} for depth of field")
     return Plan(cfg, tree, caster, scene_type, integrator)
 
 

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from lightcuts.accel import make_caster
+from lightcuts.errors import LightcutsError
 from lightcuts.lights.direct import direct_lights
 from lightcuts.lights.indirect import indirect_lights
 from lightcuts.lights.lightset import LUMINANCE, LightSet
@@ -238,3 +239,17 @@ def test_bad_inputs_raise_one_line_errors(cornell):
         with pytest.raises(LightcutsError, match=key) as e:
             render_multidimensional(scene, caster, lights, trees, camera=camera, **kwargs)
         assert "\n" not in str(e.value)
+
+
+def test_plan_refuses_an_aperture_for_a_pinhole_integrator(tmp_path):
+    """camera.aperture > 0 needs an integrator with a thin lens: one line naming the key, before any work."""
+    from lightcuts.commands.plan import plan_run
+    from lightcuts.config import load_config
+
+    (tmp_path / "run.yaml").write_text("scene: {builtin: cornell}\ncamera: {aperture: 0.1}\n")
+    with pytest.raises(LightcutsError, match=r"^camera\.aperture: integrator 'lightcuts'"):
+        plan_run(load_config(tmp_path / "run.yaml"), render=True)
+    (tmp_path / "run.yaml").write_text("scene: {builtin: cornell}\ncamera: {aperture: 0.1}\n"
+                                       "render: {integrator: {type: multidimensional, representatives: 2}}\n")
+    plan = plan_run(load_config(tmp_path / "run.yaml"), render=True)
+    assert plan.record()["integrator"] == {"type": "multidimensional", "representatives": 2}

@@ -26,13 +26,13 @@ from lightcuts.parallel import next_task, on_counter
 from lightcuts.render import MAX_CUT
 from lightcuts.render.camera import CAM_WIDTH, camera_params, check_crop, strata
 from lightcuts.render.forest import build_forest
+from lightcuts.render.integrators import DEFAULT_REPRESENTATIVES
 from lightcuts.render.integrator import BAND_PIXELS, CHUNK, RenderResult, _kernel_array, shadow_ray_offset
 from lightcuts.render.multidim.gather import GP_WIDTH, pixel_gather
 from lightcuts.render.multidim.gather_tree import GN_WIDTH, build_gather_tree
 from lightcuts.render.multidim.product_cut import all_pairs, light_representatives, product_cut
 
 #: Light representatives per light node (multiple representatives; docs/math.md).
-DEFAULT_REPRESENTATIVES = 4
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
