@@ -24,7 +24,7 @@ other's best match), run in rounds so that its searches can share the cores::
 Why these rounds build Fig. 4's tree: docs/math.md, "Rounds of mutual best matches". A
 round's searches only read the kd-tree and each writes its own cluster's answer, so they run on the
 numba threads, the clusters of one kd leaf together
-(:func:`~lightcuts.cluster.kd_search.kd_search_range`); the pairs are chosen on one thread in a fixed
+(:func:`~lightcuts.cluster.kd_group_search.kd_search_range`); the pairs are chosen on one thread in a fixed
 order, which numbers the nodes; the kd-tree merges them, those within one subtree below its top
 levels on the threads (:func:`~lightcuts.cluster.kd_merge.kd_merge_batch`). The tree does not depend
 on the thread count. Each cluster keeps a list of the clusters whose best match it is, so a merge
@@ -55,7 +55,8 @@ from lightcuts.cluster.bounds import points_box
 from lightcuts.cluster.kd_build import kd_build, kd_build_threaded, kd_new
 from lightcuts.cluster.kd_merge import (kd_merge, kd_merge_batch, kd_merge_batch_finish, kd_subtree_starts,
                                         kd_wants_rebuild)
-from lightcuts.cluster.kd_search import kd_best_match, kd_group_by_leaf, kd_search_range
+from lightcuts.cluster.kd_group_search import kd_group_by_leaf, kd_search_range
+from lightcuts.cluster.kd_search import kd_best_match
 from lightcuts.cluster.kd_tree import KD_SUBTREES, LEAF_SIZE
 from lightcuts.errors import LightcutsError
 from lightcuts.parallel import on_counter, on_threads

@@ -15,9 +15,10 @@ from lightcuts.cluster.agglomerate import morton_order
 from lightcuts.cluster.dissimilarity import SURFACE_AREA
 from lightcuts.cluster.kd_build import kd_build, kd_new
 from lightcuts.cluster.kd_merge import kd_merge
-from lightcuts.cluster.kd_search import kd_node_bound
 from lightcuts.cluster.kd_tree import I_FIRST_LEAF, S_HI, S_LO
 from lightcuts.errors import LightcutsError
+
+from cluster_helpers import kd_node_bound
 
 
 def random_boxes(n, seed, spread=0.05):
