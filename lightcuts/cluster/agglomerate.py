@@ -24,8 +24,8 @@ other's best match), run in rounds so that its searches can share the cores::
 Why these rounds build Fig. 4's tree: docs/math.md, "Rounds of mutual best matches". A
 round's searches only read the kd-tree and each writes its own cluster's answer, so they run on the
 numba threads, the clusters of one kd leaf together
-(:func:`~lightcuts.cluster.kd_group_search.kd_search_range`); the pairs are chosen on one thread in a fixed
-order, which numbers the nodes; the kd-tree merges them, those within one subtree below its top
+(:func:`~lightcuts.cluster.kd_group_search.kd_search_range`); the pairs are chosen on one thread in
+a fixed order, which numbers the nodes; the kd-tree merges them, those within one subtree below its top
 levels on the threads (:func:`~lightcuts.cluster.kd_merge.kd_merge_batch`). The tree does not depend
 on the thread count. Each cluster keeps a list of the clusters whose best match it is, so a merge
 finds whom to search again without a scan.
