@@ -5,7 +5,8 @@ that minimises the metric d(A u B) (:mod:`lightcuts.cluster.dissimilarity`). The
 clusters' box centres, and every node keeps enough to bound d(A u B) from below for every B under
 it, which lets a branch-and-bound search skip most of the tree (the bound: docs/math.md,
 "The kd-tree's lower bound"). Building it: :mod:`lightcuts.cluster.kd_build`; searching it:
-:mod:`lightcuts.cluster.kd_search`; merging clusters in it: :mod:`lightcuts.cluster.kd_merge`.
+:mod:`lightcuts.cluster.kd_search` (one cluster) and :mod:`lightcuts.cluster.kd_group_search` (the
+clusters of a kd leaf together); merging clusters in it: :mod:`lightcuts.cluster.kd_merge`.
 
 Shape: implicit and balanced, the children of node k are 2k+1 and 2k+2 and all leaves lie at one
 depth; each node splits at the median of its clusters' centres along the longest side of its cell.

@@ -11,7 +11,8 @@ Both builders run one kernel on 6D points ``(position, c * normal)``; divisive-3
 Zero normal columns never have the strictly longest extent (ties go to the lowest axis), so that is
 exactly the 3D split, and one compiled kernel serves both.
 
-Node ids are depth-first (the root is 0, a left child directly follows its parent): every subtree
+Node ids are depth-first (the root is 0, a left child directly follows its parent), as the
+top-down driver shared with ``saoh`` numbers them (:mod:`lightcuts.trees.topdown`): every subtree
 owns a contiguous id range, which lets subtrees be built on several threads with the same result,
 and children have larger ids than their parent, so ``build_tree`` fills the nodes in decreasing id
 order, sequentially in memory.
@@ -19,12 +20,14 @@ order, sequentially in memory.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 
 from lightcuts.cluster.bounds import EMPTY_HI, EMPTY_LO, box_grow
-from lightcuts.parallel import balance, run_all, threads_for
 from lightcuts.trees.registry import BUILDERS
+from lightcuts.trees.topdown import register_split, split_subtrees, top_down
 
 # Below this many lights the build runs on one thread (thread start-up would cost more).
 _PARALLEL_MIN = 20000
@@ -127,100 +130,33 @@ def _points(position, normal, c):
 
 
 @njit(cache=True)
-def visit(st_range, st_box, top, node, s, e, lo, hi, perm, left, right, light):
-    """Node ``node`` over rows s..e-1 (box lo, hi: k-tuples, ``st_box`` rows 2k wide): a leaf is
-    written at once, a larger range goes on the stack at ``top``. Returns the new stack size.
-    (Shared with lightcuts.trees.saoh, whose boxes are 3D.)"""
-    if e - s == 1:
-        left[node] = -1
-        right[node] = -1
-        light[node] = perm[s]
-        return top
-    st_range[top, 0] = node
-    st_range[top, 1] = s
-    st_range[top, 2] = e
-    k = len(lo)
-    for d in range(k):
-        st_box[top, d] = lo[d]
-        st_box[top, k + d] = hi[d]
-    return top + 1
+def _box_row(b, j):
+    """Row j of a (M, 12) box array as (lo, hi) 6-tuples."""
+    return ((b[j, 0], b[j, 1], b[j, 2], b[j, 3], b[j, 4], b[j, 5]),
+            (b[j, 6], b[j, 7], b[j, 8], b[j, 9], b[j, 10], b[j, 11]))
+
+
+class _Rows(NamedTuple):
+    """What :func:`_split` reads besides (perm, s, e, lo, hi): the (N, 6) points."""
+    head: tuple
+    tail: tuple
+
+
+register_split(_Rows, _split, _box_row)
 
 
 @njit(cache=True, nogil=True)
 def _subtrees(pts, perm, tasks, boxes, cut, left, right, light):
-    """Build the subtrees of ``tasks`` (rows: node, s, e over rows s..e-1 of pts; ``boxes`` rows:
-    their lo, hi) into left, right, light.
-
-    A node with id r over rows s..e-1 split at row m has children r + 1 and r + 2 (m - s), so each
-    subtree owns a fixed id range and row range whatever order, or thread, builds it. Ranges of
-    2..cut rows (cut > 0) are not split but returned, as (tasks, boxes), for another call.
-    """
-    size = 1
-    rows = 0
-    for j in range(tasks.shape[0]):
-        size = max(size, tasks[j, 2] - tasks[j, 1])
-        rows += tasks[j, 2] - tasks[j, 1]
-    # Explicit stack, the left child on top: at most one pending right sibling per level, so
-    # depth + 1 <= size entries of (node, s, e) and box (lo, hi).
-    st_range = np.empty((size, 3), np.int64)
-    st_box = np.empty((size, 12))
-    # Returned ranges are disjoint, of 2 rows or more.
-    out_range = np.empty((rows // 2 if cut > 0 else 0, 3), np.int64)
-    out_box = np.empty((out_range.shape[0], 12))
-    n_out = 0
-    for j in range(tasks.shape[0]):
-        lo = (boxes[j, 0], boxes[j, 1], boxes[j, 2], boxes[j, 3], boxes[j, 4], boxes[j, 5])
-        hi = (boxes[j, 6], boxes[j, 7], boxes[j, 8], boxes[j, 9], boxes[j, 10], boxes[j, 11])
-        # np.int64(0), not 0: a literal would compile a second visit.
-        top = visit(st_range, st_box, np.int64(0), tasks[j, 0], tasks[j, 1], tasks[j, 2], lo, hi, perm,
-                     left, right, light)
-        while top > 0:
-            top -= 1
-            node = st_range[top, 0]
-            s = st_range[top, 1]
-            e = st_range[top, 2]
-            if e - s <= cut:
-                for d in range(3):
-                    out_range[n_out, d] = st_range[top, d]
-                for d in range(12):
-                    out_box[n_out, d] = st_box[top, d]
-                n_out += 1
-                continue
-            lo = (st_box[top, 0], st_box[top, 1], st_box[top, 2], st_box[top, 3], st_box[top, 4], st_box[top, 5])
-            hi = (st_box[top, 6], st_box[top, 7], st_box[top, 8], st_box[top, 9], st_box[top, 10], st_box[top, 11])
-            m, llo, lhi, rlo, rhi = _split(pts, perm, s, e, lo, hi)
-            a = node + 1
-            b = node + 2 * (m - s)
-            left[node] = a
-            right[node] = b
-            light[node] = -1
-            top = visit(st_range, st_box, top, b, m, e, rlo, rhi, perm, left, right, light)
-            top = visit(st_range, st_box, top, a, s, m, llo, lhi, perm, left, right, light)
-    return out_range[:n_out], out_box[:n_out]
+    """The subtrees of ``tasks`` over rows of the (N, 6) points, split by :func:`_split`
+    (:func:`~lightcuts.trees.topdown.split_subtrees`)."""
+    return split_subtrees(_Rows((pts,), ()), perm, tasks, boxes, cut, left, right, light)
 
 
 def _divisive(position, normal, c):
-    """Top-down tree over the 6D points (position, c * normal), (N, 3) float64 each.
-
-    Returns (left, right, light) as (2N-1,) int32 arrays, root 0. With more than one numba thread
-    the top levels are split serially, then the subtrees below them are built on the threads
-    (the kernels release the GIL); the tree does not depend on the thread count.
-    """
-    n = position.shape[0]
-    k = 2 * n - 1
-    left = np.empty(k, np.int32)
-    right = np.empty(k, np.int32)
-    light = np.empty(k, np.int32)
+    """Top-down tree over the 6D points (position, c * normal), (N, 3) float64 each: (left, right,
+    light) as (2N-1,) int32 arrays, root 0 (:func:`~lightcuts.trees.topdown.top_down`)."""
     pts, perm, box = _points(position, normal, c)
-    threads = threads_for(n, _PARALLEL_MIN)
-    root = np.array([[0, 0, n]], np.int64)
-    # About 4 subtrees per thread or more, for balance: splits are at the middle, not the median.
-    cut = n // (4 * threads) if threads > 1 else 0
-    tasks, boxes = _subtrees(pts, perm, root, box, cut, left, right, light)
-    if len(tasks):
-        run_all(lambda g: _subtrees(pts, perm, tasks[g], boxes[g], 0, left, right, light),
-                balance(tasks[:, 2] - tasks[:, 1], threads))
-    return left, right, light
+    return top_down(position.shape[0], lambda *a: _subtrees(pts, perm, *a), box, _PARALLEL_MIN)
 
 
 @BUILDERS.register("divisive-3d", reads=(), compare_row=4)

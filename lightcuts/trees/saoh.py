@@ -32,7 +32,8 @@ binary with single-light leaves and 2N-1 nodes for any input. Lights with the sa
 separated only by that fallback. Collinear lights make every box flat in two axes, so every
 candidate costs 0 and the first valid boundary wins.
 
-Node ids are depth-first, as in :mod:`lightcuts.trees.divisive`: a node over rows s..e-1 split at
+The stack loop, the depth-first node ids and the threads are the top-down driver's
+(:mod:`lightcuts.trees.topdown`, shared with the divisive builders): a node over rows s..e-1 split at
 row m has children ``node + 1`` and ``node + 2 (m - s)``, so subtrees below the top levels are built
 on the numba threads with the same result as on one. Each node reads its lights once per axis to
 bin them and once to partition them: O(N) per tree level.
@@ -40,14 +41,15 @@ bin them and once to partition them: O(N) per tree level.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 
 from lightcuts.cluster.bounds import EMPTY_HI, EMPTY_LO, box_grow, points_box, row3
 from lightcuts.cluster.cones import cone_from_box
-from lightcuts.parallel import balance, run_all, threads_for
-from lightcuts.trees.divisive import visit
 from lightcuts.trees.registry import BUILDERS
+from lightcuts.trees.topdown import register_split, split_subtrees, top_down
 
 #: Slices per axis; BUCKETS - 1 candidate boundaries per axis.
 BUCKETS = 12
@@ -231,49 +233,32 @@ def _split(pos, nrm, lum, perm, s, e, lo, hi, oriented, stats, acc, sides, costs
     return i, llo, lhi, rlo, rhi
 
 
+@njit(cache=True)
+def _box_row(b, j):
+    """Row j of a (M, 6) box array as (lo, hi) 3-tuples."""
+    return row3(b, j, 0), row3(b, j, 3)
+
+
+class _Rows(NamedTuple):
+    """What :func:`_split` reads besides (perm, s, e, lo, hi): the lights' arrays, then the oriented
+    flag and the scratch."""
+    head: tuple
+    tail: tuple
+
+
+register_split(_Rows, _split, _box_row)
+
+
 @njit(cache=True, nogil=True)
 def _subtrees(pos, nrm, lum, perm, oriented, tasks, boxes, cut, left, right, light):
-    """Build the subtrees of ``tasks`` (rows: node, s, e; ``boxes`` rows: their lo, hi) into left,
-    right, light. Ranges of 2..cut rows (cut > 0) are not split but returned, as (tasks, boxes)."""
-    size = 1
-    rows = 0
-    for j in range(tasks.shape[0]):
-        size = max(size, tasks[j, 2] - tasks[j, 1])
-        rows += tasks[j, 2] - tasks[j, 1]
-    st_range = np.empty((size, 3), np.int64)
-    st_box = np.empty((size, 6))
-    out_range = np.empty((rows // 2 if cut > 0 else 0, 3), np.int64)
-    out_box = np.empty((out_range.shape[0], 6))
-    n_out = 0
+    """The subtrees of ``tasks`` over rows of the lights' arrays, split by :func:`_split`
+    (:func:`~lightcuts.trees.topdown.split_subtrees`), with this call's scratch."""
     stats = np.empty((3, BUCKETS, _FIELDS))
     acc = np.empty((2, _FIELDS))
     sides = np.empty((2, BUCKETS - 1))
     costs = np.empty((3, BUCKETS - 1))
-    for j in range(tasks.shape[0]):
-        top = visit(st_range, st_box, np.int64(0), tasks[j, 0], tasks[j, 1], tasks[j, 2],
-                    row3(boxes, j, 0), row3(boxes, j, 3), perm, left, right, light)
-        while top > 0:
-            top -= 1
-            node = st_range[top, 0]
-            s = st_range[top, 1]
-            e = st_range[top, 2]
-            if e - s <= cut:
-                for d in range(3):
-                    out_range[n_out, d] = st_range[top, d]
-                for d in range(6):
-                    out_box[n_out, d] = st_box[top, d]
-                n_out += 1
-                continue
-            m, llo, lhi, rlo, rhi = _split(pos, nrm, lum, perm, s, e, row3(st_box, top, 0), row3(st_box, top, 3),
-                                           oriented, stats, acc, sides, costs)
-            a = node + 1
-            b = node + 2 * (m - s)
-            left[node] = a
-            right[node] = b
-            light[node] = -1
-            top = visit(st_range, st_box, top, b, m, e, rlo, rhi, perm, left, right, light)
-            top = visit(st_range, st_box, top, a, s, m, llo, lhi, perm, left, right, light)
-    return out_range[:n_out], out_box[:n_out]
+    return split_subtrees(_Rows((pos, nrm, lum), (oriented, stats, acc, sides, costs)), perm, tasks, boxes, cut,
+                          left, right, light)
 
 
 def _arrays(position, normal, luminance, light_type):
@@ -304,18 +289,8 @@ def saoh(position, normal, luminance, light_type, metric, c, seed):
     """Top-down splits by the surface-area-orientation heuristic (Conty Estevez and Kulla 2018)."""
     pos, nrm, lum, oriented = _arrays(position, normal, luminance, light_type)
     n = len(pos)
-    k = 2 * n - 1
-    left = np.empty(k, np.int32)
-    right = np.empty(k, np.int32)
-    light = np.empty(k, np.int32)
     perm = np.arange(n, dtype=np.int32)
     lo, hi = points_box(pos, 0, n)
     box = np.array([lo + hi], np.float64)
-    threads = threads_for(n, _PARALLEL_MIN)
-    root = np.array([[0, 0, n]], np.int64)
-    cut = n // (4 * threads) if threads > 1 else 0
-    tasks, boxes = _subtrees(pos, nrm, lum, perm, oriented, root, box, cut, left, right, light)
-    if len(tasks):
-        run_all(lambda g: _subtrees(pos, nrm, lum, perm, oriented, tasks[g], boxes[g], 0, left, right, light),
-                balance(tasks[:, 2] - tasks[:, 1], threads))
+    left, right, light = top_down(n, lambda *a: _subtrees(pos, nrm, lum, perm, oriented, *a), box, _PARALLEL_MIN)
     return left, right, light, 0

@@ -11,13 +11,14 @@ import pytest
 from lightcuts.accel.triangles import triangle_boxes
 from lightcuts.accel.bvh.bvh_agglomerative import (bvh_agglomerative, bvh_agglomerative_heap, bvh_agglomerative_stats,
                                                bvh_greedy_reference)
-from lightcuts.cluster.agglomerate import morton_order
 from lightcuts.cluster.dissimilarity import SURFACE_AREA
 from lightcuts.cluster.kd_build import kd_build, kd_new
 from lightcuts.cluster.kd_merge import kd_merge
-from lightcuts.cluster.kd_search import kd_node_bound
 from lightcuts.cluster.kd_tree import I_FIRST_LEAF, S_HI, S_LO
+from lightcuts.cluster.morton import morton_order
 from lightcuts.errors import LightcutsError
+
+from cluster_helpers import kd_node_bound
 
 
 def random_boxes(n, seed, spread=0.05):

@@ -26,7 +26,6 @@ from hypothesis import strategies as st
 from lightcuts.cluster.cones import cone_from_box
 from lightcuts.cluster.kd_build import kd_build, kd_build_threaded, kd_new
 from lightcuts.cluster.kd_merge import kd_merge, kd_merge_batch, kd_merge_batch_finish, kd_subtree, kd_wants_rebuild
-from lightcuts.cluster.kd_search import best_matches_after_merges
 from lightcuts.cluster.kd_tree import (I_ACTIVE, I_BUILT, I_FIRST_LEAF, KD_SUBTREES, N_AXIS, N_EMIN, N_HMIN,
                                        N_IMIN, N_LMAX, N_SPLIT, NE_MIN, NH_MIN, NL_MAX, S_HI, S_I, S_LO, S_NHI, S_NLO,
                                        SLOT_DATA, KdTree)
@@ -38,6 +37,8 @@ from lightcuts.trees.build import build_tree
 from lightcuts.trees.metrics import Metric, metric_eval
 from lightcuts.trees.registry import get_metric
 from lightcuts.trees.validate import validate_tree
+
+from cluster_helpers import best_matches_after_merges
 
 METRIC_NAMES = ("walter2008", "walter2005", "surface-area")
 KD_FIELDS = ("slot_f", "slot_id", "slot_of", "slot_leaf", "node_s", "node_n", "node_cnt", "leaf_start", "info",

@@ -234,10 +234,10 @@ def test_fill_on_threads_is_the_bottom_up_fill(builder, scratch_registries, thre
     """A tree large enough for the threaded fill: every node is its children's union, and the
     arrays are the same with one thread or two (a preorder builder, and one that is not)."""
 
-    from lightcuts.trees import build as build_module
+    from lightcuts.trees import fill as fill_module
 
     lights = random_lights(25000, "oriented", seed=4)
-    assert 2 * len(lights) - 1 >= build_module._PARALLEL_MIN
+    assert 2 * len(lights) - 1 >= fill_module._PARALLEL_MIN
     base = get_builder("divisive-6d")
 
     def shuffled(*args):

@@ -19,10 +19,10 @@ and independent of the thread count.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from lightcuts.cluster.agglomerate import PARALLEL_MIN, agglomerate
-from lightcuts.cluster.dissimilarity import SURFACE_AREA
+from lightcuts.cluster.dissimilarity import SURFACE_AREA, surface_area
+from lightcuts.cluster.greedy import greedy_cluster
 from lightcuts.cluster.kd_tree import LEAF_SIZE
 from lightcuts.errors import LightcutsError
 from lightcuts.limits import MAX_COORD
@@ -71,54 +71,13 @@ def bvh_agglomerative_heap(lo, hi):
     return bvh_agglomerative_stats(lo, hi, heap=True)[:4]
 
 
-@njit(cache=True)
-def _greedy(lo, hi):
-    n = lo.shape[0]
-    k = 2 * n - 1
-    clo = np.empty((k, 3))
-    chi = np.empty((k, 3))
-    clo[:n] = lo
-    chi[:n] = hi
-    left = np.full(k, -1, np.int32)
-    right = np.full(k, -1, np.int32)
-    alive = np.zeros(k, np.bool_)
-    alive[:n] = True
-    for new in range(n, k):
-        best_d = np.inf
-        ba = -1
-        bb = -1
-        for a in range(new):
-            if not alive[a]:
-                continue
-            for b in range(a + 1, new):
-                if not alive[b]:
-                    continue
-                dx = max(chi[a, 0], chi[b, 0]) - min(clo[a, 0], clo[b, 0])
-                dy = max(chi[a, 1], chi[b, 1]) - min(clo[a, 1], clo[b, 1])
-                dz = max(chi[a, 2], chi[b, 2]) - min(clo[a, 2], clo[b, 2])
-                d = 2.0 * (dx * dy + dy * dz + dz * dx)
-                if d < best_d:
-                    best_d = d
-                    ba = a
-                    bb = b
-        left[new] = ba
-        right[new] = bb
-        alive[ba] = False
-        alive[bb] = False
-        alive[new] = True
-        for t in range(3):
-            clo[new, t] = min(clo[ba, t], clo[bb, t])
-            chi[new, t] = max(chi[ba, t], chi[bb, t])
-    return left, right
-
-
 def bvh_greedy_reference(lo, hi):
-    """The naive greedy clustering (Fig. 2), O(F^3): repeatedly merge the two active clusters whose
+    """The greedy clustering (Fig. 2) of the clustering engine (:mod:`lightcuts.cluster.greedy`, the
+    oracle the ``greedy`` light-tree builder runs too): repeatedly merge the two active clusters whose
     union box has the least surface area (the first pair in id order among ties). A reference for
-    the tests, for a few hundred triangles; the same result layout as :func:`bvh_agglomerative`."""
+    the tests, O(F^2) for typical inputs, for a few thousand triangles at most; the same result
+    layout as :func:`bvh_agglomerative`."""
     lo, hi = _boxes(lo, hi, "bvh-greedy-reference")
     n = len(lo)
-    left, right = _greedy(lo, hi)
-    prim = np.full(2 * n - 1, -1, np.int32)
-    prim[:n] = np.arange(n, dtype=np.int32)
+    left, right, prim = greedy_cluster(surface_area, False, 0.0, lo, hi, np.zeros((n, 3)), np.zeros(n))
     return left, right, prim, 2 * n - 2
