@@ -165,7 +165,7 @@ class _Shared:
             t0 = time.perf_counter()
             self.scene = self.plan.scene()
             if self.plan.caster.trait("warm_render_kernel", False):
-                self.warmup = start_render_warmup()
+                self.warmup = start_render_warmup(self.plan.integrator.trait("kernels"))
             self.caster = self.plan.make_caster(self.scene)
             self.envmap = self.plan.environment()
             self.lights = self.plan.lights(self.scene, self.caster, self.envmap)
@@ -260,7 +260,7 @@ def _row(cfg, plan, label, shared, store, pixels, reference, progress: bool) -> 
     finish_warmup(s.warmup)
     s.warmup = None
     result, t_image, _ = render_timed(cfg, s.scene, s.caster, s.lights, trees, s.envmap, f"{cfg.name}: {label}",
-                                      not progress)
+                                      not progress, plan.integrator)
     crop = cfg.render.crop
     x0, y0 = (0, 0) if crop is None else crop[:2]
 

@@ -107,7 +107,8 @@ def _run(cfg, plan, source, reference: bool, progress: bool, warmup: list) -> Re
     t0 = time.perf_counter()
     scene = plan.scene()
     if plan.caster.trait("warm_render_kernel", False):
-        warmup.append(start_render_warmup())  # None where the render kernel is cached
+        # None where the render kernel is cached
+        warmup.append(start_render_warmup(plan.integrator.trait("kernels")))
     caster = plan.make_caster(scene)
     envmap = plan.environment()
     light_sets = plan.lights(scene, caster, envmap)

@@ -1,8 +1,9 @@
 """numba on the commands' side: a notice when kernels first compile, and the render kernel compiled on the side.
 
 On an empty cache a render spends most of its time compiling kernels (``cache=True``: later runs
-load them). The render kernel (lightcuts.render.integrator) is the largest of them and is needed
-last, so :func:`start_render_warmup` compiles it in a child process (one core) while this process
+load them). The render kernel (the ``_render_band`` of the integrator's ``kernels`` module, e.g.
+lightcuts.render.integrator) is the largest of them and is needed last, so
+:func:`start_render_warmup` compiles it in a child process (one core) while this process
 traces lights and builds trees (the other), and :func:`finish_warmup` waits for the child before
 the first render, which then loads the kernel from the cache. Correct however the child ends: the
 cache is a cache (numba writes each entry atomically), so a child that failed, was killed or found
@@ -23,8 +24,8 @@ try:
     ctypes.CDLL(None).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
 except Exception:
     pass
-from lightcuts.render.integrator import warm_kernels
-warm_kernels()
+import importlib, sys
+importlib.import_module(sys.argv[1]).warm_kernels()
 """
 
 #: Longest wait for the child before the render compiles the kernel itself, seconds.
@@ -67,19 +68,23 @@ def is_cached(dispatcher) -> bool:
         return True
 
 
-def start_render_warmup() -> subprocess.Popen | None:
+def start_render_warmup(kernels: str | None = "lightcuts.render.integrator") -> subprocess.Popen | None:
     """If the render kernel is not in the cache, start a child process that compiles it (and writes
-    it to the cache) by rendering one pixel of a small scene; None if it is cached or the child
-    cannot start."""
-    from lightcuts.render.integrator import _render_band
+    it to the cache) by rendering one pixel of a small scene; None if it is cached, ``kernels`` is
+    None or the child cannot start.
 
-    if is_cached(_render_band):
+    kernels : the module of the render kernel ``_render_band`` and of ``warm_kernels()``, which
+        compiles it (an integrator's ``kernels`` trait)
+    """
+    import importlib
+
+    if kernels is None or is_cached(importlib.import_module(kernels)._render_band):
         return None
     root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join([root] + [p for p in [env.get("PYTHONPATH")] if p])
     try:
-        return subprocess.Popen([sys.executable, "-c", _CHILD], env=env, stdin=subprocess.DEVNULL,
+        return subprocess.Popen([sys.executable, "-c", _CHILD, kernels], env=env, stdin=subprocess.DEVNULL,
                                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     except OSError:
         return None
