@@ -24,6 +24,7 @@ from lightcuts.errors import LightcutsError
 #: replaced (an ``--out`` naming a folder of the user's is refused before any work).
 OUTPUT_FILES = frozenset({"image.exr", "image.png", "cutsize.png", "report.json", "reference.exr",
                           "reference.png", "scaling.csv", "scaling.png", "render_scaling.csv", "render_scaling.png",
+                          "gather_scaling.csv", "gather_scaling.png",
                           "compare", "accel", "reference", "mitsuba.exr", "mitsuba.png", "lightcuts.exr",
                           "lightcuts.png"})
 #: Sub-folders of a render's folder that belong to other commands (``lightcuts compare`` writes

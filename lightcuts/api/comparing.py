@@ -96,8 +96,9 @@ class Comparison:
 
     rows : one dict per row with the keys and order of table.csv
         (:data:`lightcuts.report.compare.CSV_FIELDS`; None where the CSV cell is blank)
-    report : the dict ``lightcuts compare`` writes as report.json (every row's full dict, config, machine)
-    cut_sizes : label -> (H, W) float32 cut size per pixel
+    report : the dict ``lightcuts compare`` writes as report.json (every row's full dict, config, machine,
+        ``cut_unit``: what the cut sizes count, the integrator's ``cut_unit`` trait)
+    cut_sizes : label -> (H, W) float32 cut size per pixel, in ``report["cut_unit"]``
     images : label -> (H, W, 3) float32 linear RGB
     """
 
@@ -136,7 +137,7 @@ class Comparison:
         with output_set(out, keep=("rows",)) as tmp:
             write_tables(tmp, rows, self.title(), self._extra())
             report["cut_scale_max"] = write_cut_images(tmp, {r["label"]: self.cut_sizes[r["label"]] for r in rows},
-                                                       diff, self.title())
+                                                       diff, self.title(), report.get("cut_unit"))
             for name, image in (self.mitsuba_images or {}).items():
                 write_exr(tmp / f"mitsuba-{name}.exr", image)
                 write_png(tmp / f"mitsuba-{name}.png", image, self.config.render.exposure)
@@ -165,7 +166,7 @@ class _Shared:
             t0 = time.perf_counter()
             self.scene = self.plan.scene()
             if self.plan.caster.trait("warm_render_kernel", False):
-                self.warmup = start_render_warmup()
+                self.warmup = start_render_warmup(self.plan.integrator.trait("kernels"))
             self.caster = self.plan.make_caster(self.scene)
             self.envmap = self.plan.environment()
             self.lights = self.plan.lights(self.scene, self.caster, self.envmap)
@@ -242,10 +243,11 @@ def _row(cfg, plan, label, shared, store, pixels, reference, progress: bool) -> 
                     metric=spec.metric.name if spec.metric is not None else None, c=spec.c,
                     pixels=None if pixels is None else pixels.tolist(), version=__version__)
     name = file_label(label)
+    unit = plan.integrator.trait("cut_unit")
     cached = store.load(name, key)
     if cached is not None:
-        return {"row": {**json.loads(str(cached["row"])), "plugins": plan.record()}, "cut": cached["cut"],
-                "image": cached["image"]}
+        return {"row": {**json.loads(str(cached["row"])), "plugins": plan.record(), "cut_unit": unit},
+                "cut": cached["cut"], "image": cached["image"]}
 
     s = shared.get()
     for typ, ls in s.lights.items():  # load (or compile) the builder's kernels untimed
@@ -260,7 +262,7 @@ def _row(cfg, plan, label, shared, store, pixels, reference, progress: bool) -> 
     finish_warmup(s.warmup)
     s.warmup = None
     result, t_image, _ = render_timed(cfg, s.scene, s.caster, s.lights, trees, s.envmap, f"{cfg.name}: {label}",
-                                      not progress)
+                                      not progress, plan.integrator)
     crop = cfg.render.crop
     x0, y0 = (0, 0) if crop is None else crop[:2]
 
@@ -269,7 +271,7 @@ def _row(cfg, plan, label, shared, store, pixels, reference, progress: bool) -> 
            "lights": {typ: len(ls) for typ, ls in s.lights.items()},
            "build_s": t_build, "preprocess_s": s.seconds + t_build, "image_s": t_image,
            "summed_s": s.seconds + t_build + t_image,
-           "cut_mean": float(result.cut_size.mean()), "cut_max": float(result.cut_size.max()),
+           "cut_mean": float(result.cut_size.mean()), "cut_max": float(result.cut_size.max()), "cut_unit": unit,
            "shadow_rays_per_pixel": float(result.shadow_rays) / n_pixels,
            "err_median": None, "err_p99": None, "pixels_compared": 0, "plugins": plan.record()}
     if reference is not None:
@@ -283,7 +285,7 @@ def _row(cfg, plan, label, shared, store, pixels, reference, progress: bool) -> 
 
 def _comparison(cfg, source, results: list[dict], reference, pixels, diff, mitsuba) -> Comparison:
     """The Comparison of finished rows: the rows' ratio to divisive-6d's cut, the report dict."""
-    from lightcuts.report.compare import CSV_FIELDS, machine
+    from lightcuts.report.compare import CSV_FIELDS, cut_unit, machine
 
     rows = [dict(r["row"]) for r in results]
     from lightcuts.trees.registry import BUILDERS
@@ -293,7 +295,7 @@ def _comparison(cfg, source, results: list[dict], reference, pixels, diff, mitsu
     for r in rows:
         r["cut_vs_divisive_6d"] = r["cut_mean"] / base if base else None
     report = {"config": source, "name": cfg.name, "seed": cfg.seed,
-              "settings": cfg.model_dump(mode="json"), "machine": machine(), "rows": rows,
+              "settings": cfg.model_dump(mode="json"), "machine": machine(), "cut_unit": cut_unit(rows), "rows": rows,
               "pixels": None if pixels is None else len(pixels), "diff": list(diff) if diff else None}
     if reference is not None:
         report["reference"] = {"seconds": reference["seconds"], "shadow_rays": reference["shadow_rays"]}

@@ -17,7 +17,9 @@ class Render:
 
     config : the RunConfig it was rendered from
     image : (H, W, 3) float32, linear RGB radiance (H, W: the crop window's size when cropped)
-    cut_size : (H, W) float32, nodes in the final cut per pixel (summed over the trees, mean over spp)
+    cut_size : (H, W) float32, the cut per pixel in the integrator's ``cut_unit`` (report's
+        ``cut_size_unit``): ``lightcuts``, light nodes summed over the trees, mean over the eye rays;
+        ``multidimensional``, (gather, light) pairs in the pixel's cut
     report : the dict ``lightcuts render`` writes as report.json (settings, counts, seconds)
     reference : (H, W, 3) float32, the all-lights reference image, or None (``reference=False``)
     """
@@ -56,7 +58,7 @@ class Render:
         with output_set(out, keep=SUBRUN_FOLDERS) as tmp:
             write_exr(tmp / "image.exr", self.image)
             write_png(tmp / "image.png", self.image, cfg.render.exposure)
-            write_heatmap(tmp / "cutsize.png", self.cut_size,
+            write_heatmap(tmp / "cutsize.png", self.cut_size, label=f"cut size ({report['cut_size_unit']})",
                           title=f"{cfg.name}: {report['builder']}, eps {cfg.render.eps:g}, "
                                 f"mean cut {report['cut_size_mean']:.0f}")
             if self.reference is not None:
@@ -109,7 +111,8 @@ def _run(cfg, plan, source, reference: bool, progress: bool, warmup: list) -> Re
     tree_warmup = start_tree_warmup(plan.tree, config_light_types(cfg))  # None where cached
     warmup.append(tree_warmup)
     scene = plan.scene()
-    render_warmup = start_render_warmup() if plan.caster.trait("warm_render_kernel", False) else None
+    render_warmup = start_render_warmup(plan.integrator.trait("kernels")) \
+        if plan.caster.trait("warm_render_kernel", False) else None  # None where the render kernel is cached
     warmup.append(render_warmup)
     caster = plan.make_caster(scene)
     envmap = plan.environment()

@@ -79,7 +79,7 @@ def _lightcuts_image(args, cfg, plan, scene, envmap, warmup: list) -> tuple[np.n
 
     t0 = time.perf_counter()
     if plan.caster.trait("warm_render_kernel", False):
-        warmup.append(start_render_warmup())
+        warmup.append(start_render_warmup(plan.integrator.trait("kernels")))
     with plan.make_caster(scene) as caster:
         light_sets = plan.lights(scene, caster, envmap)
         trees = plan.trees(light_sets)

@@ -21,6 +21,10 @@ the cut grows far slower than N; added to the set:
 
 The particle tracer returns about N VPLs (its paths end by Russian roulette), so the plots use the
 actual count. Timings are wall-clock on a possibly shared machine: compare builders within a run.
+
+With ``--gather 1,4,16,64,256`` the command instead renders the config's own image at each number
+of gather points per pixel with the lightcuts and the multidimensional integrator
+(:mod:`lightcuts.commands.scaling_gather`): ``gather_scaling.csv`` and ``gather_scaling.png``.
 """
 
 from __future__ import annotations
@@ -35,6 +39,7 @@ from lightcuts.errors import LightcutsError
 
 
 BUILD_SIZES = "50000,100000,200000,400000,800000"
+REPEATS = 3
 RENDER_SIZES = "10000,30000,100000,300000,1000000"
 
 
@@ -45,23 +50,28 @@ def add_parser(sub) -> None:
                    help=f"comma-separated light counts (default {BUILD_SIZES}; with --render {RENDER_SIZES})")
     p.add_argument("--render", action="store_true",
                    help="also render each tree: cut size, shadow rays and render time against N")
+    p.add_argument("--gather", default=None,
+                   help="comma-separated gather points per pixel, e.g. 1,4,16,64,256: instead of build scaling, "
+                        "the config's image with the lightcuts and the multidimensional integrator at each count")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--builders", default=None,
                    help="comma-separated builder names (default: every builder without a size limit)")
-    p.add_argument("--repeats", type=int, default=3, help="timed runs per point (median reported)")
+    p.add_argument("--repeats", type=int, default=None,
+                   help=f"timed builds per point (median reported; default {REPEATS})")
     p.add_argument("--out", default=None, help="output folder (default renders/<name>-scaling)")
     add_set(p)
     p.set_defaults(func=run)
 
 
-def parse_sizes(text: str) -> list[int]:
-    """``"50000,100000"`` -> [50000, 100000]; LightcutsError for anything but positive integers."""
+def parse_sizes(text: str, option: str = "--sizes") -> list[int]:
+    """``"50000,100000"`` -> [50000, 100000] (sorted, each once); LightcutsError naming ``option``
+    for anything but positive integers."""
     try:
         sizes = [int(s) for s in str(text).replace(" ", "").split(",") if s]
     except ValueError:
-        raise LightcutsError(f"--sizes {text!r}: expected comma-separated positive integers") from None
+        raise LightcutsError(f"{option} {text!r}: expected comma-separated positive integers") from None
     if not sizes or min(sizes) < 1:
-        raise LightcutsError(f"--sizes {text!r}: expected comma-separated positive integers")
+        raise LightcutsError(f"{option} {text!r}: expected comma-separated positive integers")
     return sorted(set(sizes))
 
 
@@ -100,10 +110,15 @@ def run(args) -> int:
 
 
 def run_scaling(args) -> list[dict]:
-    """The ``lightcuts scaling`` command (args: config, overrides, sizes, builders, repeats, out).
+    """The ``lightcuts scaling`` command (args: config, overrides, sizes, builders, repeats, out;
+    gather: the gather-point study instead, :func:`lightcuts.commands.scaling_gather.run_gather`).
 
-    Returns the table rows (also written to ``scaling.csv``).
+    Returns the table rows (also written to ``scaling.csv``; with gather, ``gather_scaling.csv``).
     """
+    if getattr(args, "gather", None) is not None:
+        from lightcuts.commands.scaling_gather import run_gather
+
+        return run_gather(args, parse_sizes(args.gather, "--gather"))
     from lightcuts.commands.plan import plan_run
     from lightcuts.config import load_config
     from lightcuts.io import check_output_dir, output_set, save_csv
@@ -112,7 +127,7 @@ def run_scaling(args) -> list[dict]:
 
     render = bool(getattr(args, "render", False))
     sizes = parse_sizes(args.sizes if args.sizes is not None else (RENDER_SIZES if render else BUILD_SIZES))
-    repeats = int(args.repeats)
+    repeats = int(args.repeats) if args.repeats is not None else REPEATS
     if repeats < 1:
         raise LightcutsError(f"--repeats {repeats}: must be at least 1")
     overrides = list(args.overrides or [])

@@ -4,8 +4,9 @@ On an empty cache a render spends most of its time compiling kernels (``cache=Tr
 load them), one kernel at a time (numba compiles under one lock per process). So the commands
 compile in child processes what they need later while this process traces the lights: the tree
 builder's kernels (:func:`start_tree_warmup`, a tree over a few thousand random lights of each type)
-and the render kernel (:func:`start_render_warmup`, one pixel); :func:`finish_warmup` waits for a
-child before its kernels are first called, which then load from the cache. Correct however a child
+and the render kernel (:func:`start_render_warmup`, one pixel, the ``_render_band`` of the
+integrator's ``kernels`` module); :func:`finish_warmup` waits for a child before its kernels are
+first called, which then load from the cache. Correct however a child
 ends: the cache is a cache (numba writes each entry atomically), so a child that failed, was killed
 or found no writable cache only leaves this process to compile those kernels itself.
 """
@@ -24,14 +25,14 @@ try:
     ctypes.CDLL(None).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
 except Exception:
     pass
-from lightcuts.render.integrator import warm_kernels
-warm_kernels()
+import importlib, sys
+importlib.import_module(sys.argv[1]).warm_kernels()
 """
 
-#: The tree child: as :data:`_CHILD`, then builds a tree over random lights of each given type
+#: The tree child: killed with its parent as :data:`_CHILD` is, then builds a tree over random lights of each given type
 #: with the builder, metric and c given as JSON in argv[1] (the kernels' types are those of every
 #: build; 4,096 lights take the builders' general paths, not their few-light shortcuts).
-_CHILD_TREES = _CHILD.split("from lightcuts.render")[0] + """
+_CHILD_TREES = _CHILD.split("import importlib")[0] + """
 import json, sys
 import numpy as np
 from lightcuts.lights.lightset import LightSet
@@ -99,15 +100,19 @@ def _start_child(code: str, *args: str) -> subprocess.Popen | None:
         return None
 
 
-def start_render_warmup() -> subprocess.Popen | None:
+def start_render_warmup(kernels: str | None = "lightcuts.render.integrator") -> subprocess.Popen | None:
     """If the render kernel is not in the cache, start a child process that compiles it (and writes
-    it to the cache) by rendering one pixel of a small scene; None if it is cached or the child
-    cannot start."""
-    from lightcuts.render.integrator import _render_band
+    it to the cache) by rendering one pixel of a small scene; None if it is cached, ``kernels`` is
+    None or the child cannot start.
 
-    if is_cached(_render_band):
+    kernels : the module of the render kernel ``_render_band`` and of ``warm_kernels()``, which
+        compiles it (an integrator's ``kernels`` trait)
+    """
+    import importlib
+
+    if kernels is None or is_cached(importlib.import_module(kernels)._render_band):
         return None
-    return _start_child(_CHILD)
+    return _start_child(_CHILD, kernels)
 
 
 def start_tree_warmup(spec, light_types) -> subprocess.Popen | None:
@@ -118,7 +123,7 @@ def start_tree_warmup(spec, light_types) -> subprocess.Popen | None:
     cache check (a run with a builder not used before compiles that builder's kernels itself)."""
     import json
 
-    from lightcuts.trees.build import _fill_ranges
+    from lightcuts.trees.fill import _fill_ranges
     from lightcuts.trees.registry import METRICS
 
     if is_cached(_fill_ranges) or not light_types:
@@ -131,7 +136,7 @@ def start_tree_warmup(spec, light_types) -> subprocess.Popen | None:
 
 
 def finish_warmup(proc: subprocess.Popen | None, timeout: float = WARMUP_TIMEOUT) -> None:
-    """Wait for the child of :func:`start_render_warmup` (None: nothing to do); after ``timeout``
+    """Wait for a child of :func:`start_render_warmup` or :func:`start_tree_warmup` (None: nothing to do); after ``timeout``
     seconds it is killed, and the caller compiles what it needs itself."""
     if proc is None:
         return

@@ -32,7 +32,10 @@ r"""A lightcuts Scene (camera, sun and environment map included) as a Mitsuba 3 
 * Camera: ``perspective``, vertical ``fov`` (``fov_axis: y``), ``look_at`` with the same up (both
   give image right = forward x up), ``hdrfilm`` of the same size with a box pixel filter
   (``rfilter: box``), cropped to ``render.crop`` when one is given; clip planes enclose the scene;
-  multi-jittered pixel samples.
+  multi-jittered pixel samples. With a lens (``camera.aperture > 0``) ``thinlens`` instead, with
+  ``aperture_radius`` = the aperture and ``focus_distance`` = ``camera.focus_distance`` (default
+  ``|look_at - position|``): both place the plane in focus perpendicular to the view axis at that
+  distance and sample the lens disk uniformly.
 """
 
 from __future__ import annotations
@@ -127,9 +130,11 @@ def envmap_for_mitsuba(pixels: np.ndarray, k: int | None = None) -> np.ndarray:
     return np.ascontiguousarray(np.repeat(out, k, axis=1), np.float32)
 
 
-def camera_dict(mi, camera, spp: int, crop=None, scene_bounds=None) -> dict:
+def camera_dict(mi, camera, spp: int, crop=None, scene_bounds=None, aperture: float = 0.0,
+                focus_distance: float | None = None) -> dict:
     """The ``perspective`` sensor of a lightcuts Camera (module docstring), about ``spp`` samples
-    per pixel (SAMPLER), film cropped to ``crop = (x0, y0, x1, y1)`` if given."""
+    per pixel (SAMPLER), film cropped to ``crop = (x0, y0, x1, y1)`` if given; ``thinlens`` with
+    the lens radius ``aperture > 0`` focused at ``focus_distance`` (None: ``|look_at - position|``)."""
     far = 1e4
     if scene_bounds is not None:
         lo, hi = np.asarray(scene_bounds, np.float64)
@@ -143,9 +148,14 @@ def camera_dict(mi, camera, spp: int, crop=None, scene_bounds=None) -> dict:
     to_world = mi.ScalarTransform4f.look_at(origin=[float(v) for v in camera.position],
                                             target=[float(v) for v in camera.look_at],
                                             up=[float(v) for v in camera.up])
-    return {"type": "perspective", "fov": float(camera.fov), "fov_axis": "y", "near_clip": far * 1e-7,
-            "far_clip": far, "to_world": to_world, "film": film,
-            "sampler": {"type": SAMPLER, "sample_count": int(spp)}}
+    sensor = {"type": "perspective", "fov": float(camera.fov), "fov_axis": "y", "near_clip": far * 1e-7,
+              "far_clip": far, "to_world": to_world, "film": film,
+              "sampler": {"type": SAMPLER, "sample_count": int(spp)}}
+    if aperture > 0:
+        if focus_distance is None:
+            focus_distance = float(np.linalg.norm(np.subtract(camera.look_at, camera.position)))
+        sensor.update(type="thinlens", aperture_radius=float(aperture), focus_distance=float(focus_distance))
+    return sensor
 
 
 def integrator_dict(integrator: str, max_depth: int = -1) -> dict:
@@ -159,18 +169,19 @@ def integrator_dict(integrator: str, max_depth: int = -1) -> dict:
 
 
 def scene_dict(scene, envmap=None, sun=None, *, spp: int = 16, integrator: str = "path", max_depth: int = -1,
-               crop=None) -> dict:
+               crop=None, aperture: float = 0.0, focus_distance: float | None = None) -> dict:
     """The Mitsuba scene dict (for ``mi.load_dict``) of ``scene`` and its camera.
 
     envmap : lightcuts.lights.environment.EnvironmentMap or None; sun : an object with ``direction``
     and ``irradiance`` (3,) (``cfg.lights.sun``) or None; spp : samples per pixel; integrator, max_depth
-    : :func:`integrator_dict`; crop : (x0, y0, x1, y1) pixels or None.
+    : :func:`integrator_dict`; crop : (x0, y0, x1, y1) pixels or None; aperture, focus_distance : the
+    camera's thin lens (``camera.aperture``, ``camera.focus_distance``; 0: a pinhole).
     """
     mi = load_mitsuba()
     if scene.camera is None:
         raise LightcutsError("camera: the scene has no camera")
     out = {"type": "scene", "integrator": integrator_dict(integrator, max_depth),
-           "sensor": camera_dict(mi, scene.camera, spp, crop, scene.bounds)}
+           "sensor": camera_dict(mi, scene.camera, spp, crop, scene.bounds, aperture, focus_distance)}
     for g, ids in enumerate(material_groups(scene)):
         f = ids[0]
         emission = scene.emission[f]

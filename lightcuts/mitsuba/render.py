@@ -3,7 +3,7 @@
 Library functions (what the ``reference`` and ``compare`` commands call):
 
 * ``render_mitsuba(cfg, scene, envmap, *, spp, integrator="path", seed=0, max_depth=-1)
-  -> (image, seconds)``: the config's scene (its camera, ``lights.sun``, the environment map
+  -> (image, seconds)``: the config's scene (its camera and thin lens, ``lights.sun``, the environment map
   ``envmap`` as loaded by ``lightcuts.lights.generate.load_environment``, ``render.crop``) rendered
   with ``spp`` samples per pixel (multi-jittered; a count that the sampler cannot factor is
   rounded up); ``image`` (H, W, 3) float32 linear RGB radiance, the same pixels
@@ -46,7 +46,7 @@ def load_scene(cfg, scene, envmap, *, spp: int, integrator: str = "path", max_de
         raise LightcutsError(f"--max-depth: {max_depth} must be -1 (unbounded) or >= 1")
     mi = load_mitsuba()
     d = scene_dict(scene, envmap, cfg.lights.sun, spp=int(spp), integrator=integrator, max_depth=int(max_depth),
-                   crop=cfg.render.crop)
+                   crop=cfg.render.crop, aperture=cfg.camera.aperture, focus_distance=cfg.camera.focus_distance)
     try:
         return mi.load_dict(d)
     except Exception as exc:

@@ -15,7 +15,9 @@ Every entry also accepts ``aperture`` and ``focus_distance`` (the camera's thin 
 the traits ``reference`` (the brute-force function over the same samples, same arguments without
 ``trees``, ``eps`` and ``max_cut``, against which its errors are measured) and ``lens`` (whether it
 renders a thin lens; the plan refuses ``camera.aperture > 0`` otherwise) and ``cut_unit`` (what
-its cut sizes count, as report.json names it).
+its cut sizes count, as report.json names it), and may declare ``kernels``: the module whose
+``_render_band`` kernel its renders use and whose ``warm_kernels()`` compiles it, which the commands
+compile in a second process while the lights and trees are made (lightcuts.commands.warmup).
 
 Entries: ``lightcuts``, a lightcut per eye ray through every light tree (Walter et al. 2005,
 :func:`lightcuts.render.integrator.render_image`); ``multidimensional``, one cut per pixel through
@@ -41,7 +43,8 @@ def _all_lights(scene, caster, lights: dict, *, aperture: float = 0.0, focus_dis
     return render_reference(scene, caster, lights, **settings)
 
 
-@INTEGRATORS.register("lightcuts", reference=_all_lights, lens=False, cut_unit="light nodes per eye ray")
+@INTEGRATORS.register("lightcuts", reference=_all_lights, lens=False, cut_unit="light nodes per eye ray",
+                      kernels="lightcuts.render.integrator")
 def lightcuts(scene, caster, lights: dict, trees: dict, *, aperture: float = 0.0, focus_distance=None, **settings):
     """A lightcut per eye ray through every light tree (Walter et al. 2005): ``render_image``.
 
@@ -60,7 +63,8 @@ def _all_pairs(scene, caster, lights: dict, **settings):
     return render_multidimensional_reference(scene, caster, lights, **settings)
 
 
-@INTEGRATORS.register("multidimensional", reference=_all_pairs, lens=True, cut_unit="pairs per pixel", params={
+@INTEGRATORS.register("multidimensional", reference=_all_pairs, lens=True, cut_unit="pairs per pixel",
+                      kernels="lightcuts.render.multidim.render", params={
     "representatives": Param(int, DEFAULT_REPRESENTATIVES, lo=1, hi=64,
                              doc="light representatives per light node (1: the tree's own only)")})
 def multidimensional(scene, caster, lights: dict, trees: dict, **settings):

@@ -3,7 +3,10 @@ table, cut-size heatmaps on one shared scale, their signed difference, and the m
 
 A row is a dict with the keys of :data:`COLUMNS` (times in seconds; ``err_median`` / ``err_p99``:
 per-pixel relative luminance error against the all-lights reference on the seeded pixel sample,
-None without one; ``cut_vs_divisive_6d``: average cut size over divisive-6d's, None without that row).
+None without one; ``cut_vs_divisive_6d``: average cut size over divisive-6d's, None without that row)
+and ``cut_unit``, what its cut sizes count (the integrator's ``cut_unit`` trait: light nodes per eye
+ray for ``lightcuts``, pairs per pixel for ``multidimensional``), which the cut columns' headers and
+the colour bars name.
 
 The per-row heatmaps ``cutsize-<label>.png`` are colour-mapped pixel by pixel (one image pixel, one
 PNG pixel) through :func:`cut_colours` with the same maximum, so the same cut size has the same colour
@@ -37,7 +40,15 @@ COLUMNS = (
     ("err_p99", "Error p99", "{:.3%}"),
 )
 #: The CSV's columns: the table's plus what a row was made with.
-CSV_FIELDS = tuple(k for k, _, _ in COLUMNS) + ("builder", "metric", "c", "lights", "pixels_compared")
+CSV_FIELDS = tuple(k for k, _, _ in COLUMNS) + ("cut_unit", "builder", "metric", "c", "lights", "pixels_compared")
+#: The columns whose header names the rows' cut unit.
+_CUT_COLUMNS = ("cut_mean", "cut_max")
+
+
+def cut_unit(rows: list[dict]) -> str | None:
+    """The rows' common ``cut_unit`` (None if a row has none or they differ)."""
+    units = {r.get("cut_unit") for r in rows}
+    return units.pop() if len(units) == 1 else None
 
 
 def file_label(label: str) -> str:
@@ -46,8 +57,11 @@ def file_label(label: str) -> str:
 
 
 def format_markdown(rows: list[dict], title: str) -> str:
-    """The table as Markdown (a blank cell where a value is None)."""
-    lines = [f"# {title}", "", "| " + " | ".join(h for _, h, _ in COLUMNS) + " |",
+    """The table as Markdown (a blank cell where a value is None); the cut columns' headers name
+    the rows' :func:`cut_unit`, e.g. ``Avg cutsize (pairs per pixel)``."""
+    unit = cut_unit(rows)
+    heads = [f"{h} ({unit})" if unit and k in _CUT_COLUMNS else h for k, h, _ in COLUMNS]
+    lines = [f"# {title}", "", "| " + " | ".join(heads) + " |",
              "|" + "|".join("---" if k == "label" else "---:" for k, _, _ in COLUMNS) + "|"]
     for r in rows:
         cells = [("" if r.get(k) is None else fmt.format(r[k])) for k, _, fmt in COLUMNS]
@@ -94,20 +108,20 @@ def cut_colours(values: np.ndarray, vmax: float) -> np.ndarray:
 
 
 def write_cut_images(folder: Path, cut_images: dict[str, np.ndarray], diff: tuple[str, str] | None,
-                     title: str) -> float:
+                     title: str, unit: str | None = None) -> float:
     """``cutsize-<label>.png`` per row and ``cutsizes.png`` (all rows and the signed difference
-    ``diff[0] - diff[1]``); returns the shared maximum."""
+    ``diff[0] - diff[1]``, colour bars naming ``unit``); returns the shared maximum."""
     from PIL import Image
 
     vmax = shared_max(cut_images)
     for label, values in cut_images.items():
         with atomic_path(folder / f"cutsize-{file_label(label)}.png", suffix=".png") as tmp:
             Image.fromarray(cut_colours(values, vmax)).save(tmp, format="PNG")
-    _write_grid(folder / "cutsizes.png", cut_images, vmax, diff, title)
+    _write_grid(folder / "cutsizes.png", cut_images, vmax, diff, title, f" ({unit})" if unit else "")
     return vmax
 
 
-def _write_grid(path: Path, cut_images: dict, vmax: float, diff, title: str) -> None:
+def _write_grid(path: Path, cut_images: dict, vmax: float, diff, title: str, unit: str) -> None:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -123,7 +137,7 @@ def _write_grid(path: Path, cut_images: dict, vmax: float, diff, title: str) -> 
         im = ax.imshow(cut_images[label], cmap="inferno", vmin=0.0, vmax=vmax, interpolation="nearest")
         ax.set_title(f"{label}\nmean {float(np.mean(cut_images[label])):.1f}", fontsize=8)
         ax.set_axis_off()
-    fig.colorbar(im, ax=list(axes[:len(labels)]), fraction=0.02, pad=0.02, label="cut size")
+    fig.colorbar(im, ax=list(axes[:len(labels)]), fraction=0.02, pad=0.02, label=f"cut size{unit}")
     if diff is not None:
         a, b = diff
         d = cut_images[a].astype(np.float64) - cut_images[b]
@@ -132,7 +146,7 @@ def _write_grid(path: Path, cut_images: dict, vmax: float, diff, title: str) -> 
         dm = ax.imshow(d, cmap="RdBu_r", vmin=-lim, vmax=lim, interpolation="nearest")
         ax.set_title(f"{a} - {b}\nmean {float(d.mean()):+.1f}", fontsize=8)
         ax.set_axis_off()
-        fig.colorbar(dm, ax=ax, fraction=0.046, pad=0.02, label="cut size difference")
+        fig.colorbar(dm, ax=ax, fraction=0.046, pad=0.02, label=f"cut size difference{unit}")
     fig.suptitle(title, fontsize=9)
     with atomic_path(path, suffix=".png") as tmp:
         fig.savefig(tmp, format="png")

@@ -96,3 +96,42 @@ def format_render_table(rows: list[dict]) -> str:
         cut = np.array([r["cut_mean"] for r in rows if r["builder"] == b], float)
         lines.append(f"fitted exponent of the cut size, {b}: {fitted_exponent(n, cut):.2f}")
     return "\n".join(lines)
+
+
+#: ``lightcuts scaling --gather`` (:mod:`lightcuts.commands.scaling_gather`): a row per (gather
+#: points G, integrator). cut_per_pixel: light nodes over a pixel's G eye rays (lightcuts) or
+#: (gather, light) pairs (multidimensional); cut_per_gather = cut_per_pixel / G; image_diff_*: the
+#: multidimensional image's relative luminance difference from the lightcut's at the same G.
+GATHER_CSV_FIELDS = ("gather", "integrator", "image_s", "cut_per_pixel", "shadow_rays_per_pixel", "cut_per_gather",
+                     "cut_max_per_pixel", "n_lights", "image_diff_median", "image_diff_max")
+
+
+def plot_gather_scaling(path: Path, rows: list[dict], title: str) -> Path:
+    """Log-log image time and cut per pixel against gather points per pixel, one series per
+    integrator with its fitted exponent in the legend; written atomically."""
+    from lightcuts.report.plots import loglog_panels
+
+    panels = []
+    for key, label in (("image_s", "image time (s)"), ("cut_per_pixel", "cut per pixel (light nodes or pairs)")):
+        series = []
+        for name in dict.fromkeys(r["integrator"] for r in rows):
+            g = np.array([r["gather"] for r in rows if r["integrator"] == name], float)
+            y = np.array([r[key] for r in rows if r["integrator"] == name], float)
+            series.append((f"{name} (G^{fitted_exponent(g, y):.2f})", g, y))
+        panels.append(("gather points per pixel G", label, series))
+    return loglog_panels(path, panels, title, (11.0, 4.4))
+
+
+def format_gather_table(rows: list[dict]) -> str:
+    head = f"{'G':>5} {'integrator':<18} {'image s':>9} {'cut/px':>10} {'cut/G':>8} {'rays/px':>10} {'diff med':>9}"
+    lines = [head, "-" * len(head)]
+    for r in rows:
+        diff = "" if r["image_diff_median"] is None else f"{r['image_diff_median']:.3%}"
+        lines.append(f"{r['gather']:>5} {r['integrator']:<18} {r['image_s']:>9.3f} {r['cut_per_pixel']:>10.1f} "
+                     f"{r['cut_per_gather']:>8.1f} {r['shadow_rays_per_pixel']:>10.1f} {diff:>9}")
+    for name in dict.fromkeys(r["integrator"] for r in rows):
+        g = np.array([r["gather"] for r in rows if r["integrator"] == name], float)
+        for key, what in (("image_s", "image time"), ("cut_per_pixel", "cut per pixel")):
+            y = np.array([r[key] for r in rows if r["integrator"] == name], float)
+            lines.append(f"fitted exponent of the {what}, {name}: {fitted_exponent(g, y):.2f}")
+    return "\n".join(lines)

@@ -157,3 +157,28 @@ def test_a_render_keeps_the_compare_folder(tmp_path, monkeypatch):
     assert (tmp_path / "renders/cornell/image.exr").is_file()
     assert (tmp_path / "renders/cornell/compare/table.md").read_text() == table
     assert (tmp_path / "renders/cornell/compare/rows/divisive-3d.npz").is_file()
+
+
+def test_multidimensional_rows_are_the_pairs_per_pixel_of_its_renders(tmp_path):
+    # Each row's cut sizes are what lightcuts.render of the same config reports: (gather, light) pairs
+    # per pixel, named so in table.md, table.csv and report.json; its error is against all the pairs.
+    import lightcuts
+
+    md = {"render.integrator": "multidimensional", "render.spp": 4, "camera.resolution": [24, 18],
+          "lights.indirect.count": 600, "lights.direct.count": 64}
+    sets = [x for k, v in md.items() for x in ("--set", f"{k}={json.dumps(v)}")]
+    out = tmp_path / "cmp"
+    assert main(["compare", str(ROOT / "configs/cornell.yaml"), "--builders", "agglomerative,divisive-6d",
+                 "--pixels", "40", "--out", str(out), "--no-progress", *sets]) == 0
+    report = json.loads((out / "report.json").read_text())
+    assert report["cut_unit"] == "pairs per pixel"
+    assert "| Avg cutsize (pairs per pixel) |" in (out / "table.md").read_text()
+    assert (out / "table.csv").read_text().count(",pairs per pixel,") == 2
+    for row in report["rows"]:
+        single = lightcuts.render(lightcuts.load_config(ROOT / "configs/cornell.yaml", **md,
+                                                        **{"tree.builder": row["label"]}), progress=False)
+        assert single.report["cut_size_unit"] == row["cut_unit"] == "pairs per pixel"
+        assert row["cut_mean"] == single.report["cut_size_mean"] and row["cut_max"] == single.report["cut_size_max"]
+        assert row["shadow_rays_per_pixel"] == single.report["shadow_rays_per_pixel"]
+        np.testing.assert_array_equal(np.load(out / "rows" / f"{row['label']}.npz")["cut"], single.cut_size)
+        assert 0 < row["err_median"] < 0.05 and row["pixels_compared"] > 20

@@ -12,8 +12,40 @@ CONFIGS = sorted((Path(__file__).parents[2] / "configs").glob("*.yaml"))
 
 @pytest.mark.parametrize("path", CONFIGS, ids=lambda p: p.name)
 def test_shipped_configs_validate(path):
+    from lightcuts.commands.plan import plan_run
+
     cfg = load_config(path)
     assert cfg.name == path.stem
+    plan_run(cfg, render=True)  # every plugin resolves; an aperture only with an integrator that renders a lens
+
+
+@pytest.mark.parametrize("name, base", [("kitchen-fig8", "kitchen"), ("rooms-fig8", "rooms")])
+def test_fig8_configs_are_the_papers_setting_on_our_scenes(name, base):
+    """640 x 480, 16 gather points, 200,000 indirect VPLs, multidimensional lightcuts with multiple
+    representatives and clamping; the scene and the rest as the scene's own config."""
+    root = CONFIGS[0].parent
+    cfg, own = load_config(root / f"{name}.yaml"), load_config(root / f"{base}.yaml")
+    assert cfg.camera.resolution == [640, 480] and cfg.render.spp == 16 and cfg.lights.indirect.count == 200_000
+    assert cfg.render.integrator == {"type": "multidimensional", "representatives": 4}
+    assert cfg.render.clamp.enabled and cfg.camera.aperture == 0
+    assert cfg.scene == own.scene and cfg.seed == own.seed and cfg.tree == own.tree
+    assert cfg.lights.direct == own.lights.direct and cfg.render.eps == own.render.eps
+
+
+def test_dof_config_focuses_on_the_table():
+    """The kitchen's camera focused at the table's distance along the view axis, 64 gather points."""
+    import numpy as np
+
+    from lightcuts.scene import kitchen
+
+    cfg = load_config(CONFIGS[0].parent / "kitchen-dof.yaml")
+    cam = kitchen.camera()
+    forward = np.subtract(cam.look_at, cam.position)
+    forward /= np.linalg.norm(forward)
+    table = np.array([kitchen.TABLE_CENTRE[0], kitchen.TABLE_H, kitchen.TABLE_CENTRE[1]])
+    assert cfg.camera.focus_distance == pytest.approx(np.dot(table - cam.position, forward), abs=0.02)
+    assert 0 < cfg.camera.aperture < 0.1 and cfg.render.spp == 64
+    assert cfg.render.integrator["type"] == "multidimensional"
 
 
 def write(tmp_path, text, name="run.yaml"):

@@ -97,6 +97,27 @@ def test_export_keeps_triangles_camera_and_emitted_power(mi):
     assert sample_count(ms) == 16
 
 
+
+@pytest.mark.parametrize("focus", [None, 900.0])
+def test_a_lens_exports_as_a_thin_lens_focused_where_lightcuts_focuses(mi, focus):
+    # camera.aperture > 0 (the multidimensional integrator's lens): Mitsuba's thinlens, the same lens
+    # radius and plane of focus (perpendicular to the view axis at focus_distance, else at look_at).
+    from lightcuts.config import load_config
+    from lightcuts.mitsuba.render import load_scene
+    from lightcuts.scene.build import scene_from_config
+
+    sets = ["camera.resolution=[16,12]", "camera.aperture=20", "render.integrator=multidimensional"]
+    cfg = load_config(CORNELL, sets + ([f"camera.focus_distance={focus}"] if focus else []))
+    scene = scene_from_config(cfg)
+    params = mi.traverse(load_scene(cfg, scene, None, spp=4).sensors()[0])
+    cam = scene.camera
+    assert params["aperture_radius"] == pytest.approx(20.0)
+    expected = focus or float(np.linalg.norm(np.subtract(cam.look_at, cam.position)))
+    assert params["focus_distance"] == pytest.approx(expected, rel=1e-6)
+    pinhole = mi.traverse(load_scene(load_config(CORNELL, sets[:1]), scene, None, spp=4).sensors()[0])
+    assert "aperture_radius" not in pinhole
+
+
 def test_cornell_direct_light_matches_mitsuba(mi, tmp_path, capsys):
     """Direct light only, lightcuts (1024 direct lights, no VPLs) against Mitsuba's direct
     integrator: within 1% in energy. The crop leaves out the directly seen light, whose

@@ -253,3 +253,21 @@ def test_plan_refuses_an_aperture_for_a_pinhole_integrator(tmp_path):
                                        "render: {integrator: {type: multidimensional, representatives: 2}}\n")
     plan = plan_run(load_config(tmp_path / "run.yaml"), render=True)
     assert plan.record()["integrator"] == {"type": "multidimensional", "representatives": 2}
+
+
+def test_warm_kernels_compiles_the_specialisation_renders_use(cornell):
+    # The commands compile the integrator's render kernel in a child process through its ``kernels``
+    # module's warm_kernels (no lights, another scene): the real renders must find that specialisation.
+    from lightcuts.commands.warmup import is_cached
+    from lightcuts.render.integrators import INTEGRATORS
+    from lightcuts.render.multidim import render as md_render
+
+    assert INTEGRATORS.entry("multidimensional").trait("kernels") == md_render.__name__
+    scene, caster, camera, lights, trees = cornell
+    md_render.warm_kernels()
+    n = len(md_render._render_band.signatures)
+    render_multidimensional(scene, caster, lights, trees, camera=camera, spp=4, crop=(0, 0, 2, 2))
+    render_multidimensional_reference(scene, caster, lights, camera=camera, spp=2, crop=(0, 0, 2, 2))
+    assert len(md_render._render_band.signatures) == n
+    assert sum("lightcuts.embree" in str(sig[0]) for sig in md_render._render_band.signatures) == 1
+    assert is_cached(md_render._render_band)

@@ -32,8 +32,6 @@ from lightcuts.render.multidim.gather import GP_WIDTH, pixel_gather
 from lightcuts.render.multidim.gather_tree import GN_WIDTH, build_gather_tree
 from lightcuts.render.multidim.product_cut import all_pairs, light_representatives, product_cut
 
-#: Light representatives per light node (multiple representatives; docs/math.md).
-
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _render_band(cdata, cam, seed, spp, sx, sy, aperture, focus, x0, x1, y0, y1, face_normal, albedo, specular,
@@ -203,3 +201,15 @@ def render_multidimensional_reference(scene, caster, lights: dict, camera=None, 
     """The brute-force reference of :func:`render_multidimensional`: the same gather points, each
     with every light (one shadow ray each). Keyword arguments as render_multidimensional."""
     return render_multidimensional(scene, caster, lights, None, camera=camera, spp=spp, reference=True, **kwargs)
+
+
+def warm_kernels() -> None:
+    """Compile the render kernel into numba's cache by rendering one pixel of the built-in Cornell
+    box without lights, as lightcuts.render.integrator.warm_kernels does for the lightcut's kernel
+    (lightcuts.commands.warmup runs it in a child process while the command builds the trees)."""
+    from lightcuts.accel import make_caster
+    from lightcuts.scene.cornell import cornell_box
+
+    scene = cornell_box()
+    with make_caster(scene, "embree") as caster:
+        render_multidimensional(scene, caster, {}, {}, spp=1, crop=(0, 0, 1, 1))
