@@ -54,7 +54,8 @@ WARMUP_TIMEOUT = 600.0
 
 
 _ANNOUNCING = False
-NOTICE = "compiling numba kernels once; later runs load them from the cache"
+NOTICE = ("compiling numba kernels once (light tracing, tree builder, renderer: about half a minute on 2 cores); "
+          "later runs load them from the cache")
 
 
 def announce_compiles() -> None:

@@ -74,6 +74,7 @@ def test_compile_notice_on_a_cold_cache_only(tmp_path):
     env = dict(os.environ, PYTHONPATH=str(ROOT), NUMBA_CACHE_DIR=str(tmp_path / "cache"))
     runs = [subprocess.run([sys.executable, "-c", code, str(tmp_path)], env=env, capture_output=True, text=True,
                            timeout=300) for _ in range(2)]
-    notice = "compiling numba kernels once; later runs load them from the cache"
+    notice = ("compiling numba kernels once (light tracing, tree builder, renderer: about half a minute on 2 cores); "
+              "later runs load them from the cache")
     assert runs[0].returncode == 0 and runs[0].stderr.strip().splitlines() == [notice], runs[0].stderr
     assert runs[1].returncode == 0 and runs[1].stderr.strip() == "", runs[1].stderr
