@@ -45,6 +45,9 @@ def main() -> None:
     common = dict(camera=camera, seed=cfg.seed, clamp=cfg.render.clamp.enabled,
                   clamp_min_distance=cfg.render.clamp.min_distance)
     cut = dict(eps=cfg.render.eps, max_cut=cfg.render.max_cut)
+    # The multidimensional integrator's parameters from the config (render.integrator: {type:
+    # multidimensional, representatives: R, gather_representatives: RG}), its defaults otherwise.
+    md_params = dict(plan.integrator.params) if plan.integrator.name == "multidimensional" else {}
 
     def timed(fn, *args, **kw):
         fn(*args, **{**kw, "crop": (0, 0, 1, 1)})  # load the kernel
@@ -54,7 +57,7 @@ def main() -> None:
 
     lc1, t1 = timed(render_image, scene, caster, lights, trees, spp=1, **common, **cut)
     lcn, tn = timed(render_image, scene, caster, lights, trees, spp=a.spp, **common, **cut)
-    md, tm = timed(render_multidimensional, scene, caster, lights, trees, spp=a.spp, **common, **cut)
+    md, tm = timed(render_multidimensional, scene, caster, lights, trees, spp=a.spp, **common, **cut, **md_params)
     print(f"lightcuts 1 spp {t1:.2f} s (cut {lc1.cut_size.mean():.0f}); lightcuts {a.spp} spp {tn:.2f} s "
           f"(cut per eye ray {lcn.cut_size.mean():.0f}, per pixel {a.spp * lcn.cut_size.mean():.0f}); "
           f"multidimensional {a.spp} {tm:.2f} s (pairs per pixel {md.cut_size.mean():.0f}, "

@@ -66,7 +66,9 @@ def _all_pairs(scene, caster, lights: dict, **settings):
 @INTEGRATORS.register("multidimensional", reference=_all_pairs, lens=True, cut_unit="pairs per pixel",
                       kernels="lightcuts.render.multidim.render", params={
     "representatives": Param(int, DEFAULT_REPRESENTATIVES, lo=1, hi=64,
-                             doc="light representatives per light node (1: the tree's own only)")})
+                             doc="light representatives per light node (1: the tree's own only)"),
+    "gather_representatives": Param(int, 1, lo=1, hi=64,
+                                    doc="representative gather points per gather node (1: the gather tree's own only)")})
 def multidimensional(scene, caster, lights: dict, trees: dict, **settings):
     """One cut per pixel through (gather tree) x (light trees) (Walter et al. 2006):
     ``render_multidimensional``; the result's ``cut_size`` is pairs evaluated per pixel."""

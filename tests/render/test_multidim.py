@@ -19,8 +19,8 @@ from lightcuts.render.integrator import render_image
 from lightcuts.render.multidim import render_multidimensional, render_multidimensional_reference
 from lightcuts.render.multidim.gather import (GP_EXP, GP_NRM, GP_POS, GP_RD, GP_REFL, GP_RS, GP_W, GP_WIDTH)
 from lightcuts.render.multidim.gather_tree import (GK_LEFT, GK_REP, GK_RIGHT, GN_EMAX, GN_EMIN, GN_HI, GN_LO,
-                                                   GN_NAX, GN_NCOS, GN_RAX, GN_RCOS, GN_RD, GN_RS, GN_W, GN_WIDTH,
-                                                   build_gather_tree)
+                                                   GN_NAX, GN_NCOS, GN_RAX, GN_RCOS, GN_RD, GN_RS, GN_W, GN_WIDTH, GN_WRD,
+                                                   build_gather_tree, gather_representatives)
 from lightcuts.render.multidim.pair_bounds import pair_bound
 from lightcuts.render.multidim.product_cut import light_representatives
 from lightcuts.render.shading import unshadowed_contribution
@@ -128,6 +128,9 @@ def test_gather_trees_are_valid(n):
     if n > 3:
         gp[1, :] = gp[0, :]  # two points on one spot
     gn, gk, root = build(gp)
+    greps = np.full((2 * n, 4), -1, np.int64)
+    gather_representatives(gn, gk, n, 0, 5, greps)
+    assert np.array_equal(greps[:n], np.repeat(np.arange(n)[:, None], 4, 1))
     assert root == (0 if n == 1 else n)
     children = lambda k: None if gk[k, GK_LEFT] < 0 else (gk[k, GK_LEFT], gk[k, GK_RIGHT])  # noqa: E731
     assert sorted(subtree(children, root)) == list(range(n))  # every point exactly once
@@ -143,6 +146,13 @@ def test_gather_trees_are_valid(n):
         assert np.isclose(gn[k, GN_W], gp[pts, GP_W].sum())
         assert gn[k, GN_EMIN] == gp[pts, GP_EXP].min() and gn[k, GN_EMAX] == gp[pts, GP_EXP].max()
         assert gk[k, GK_REP] in pts and gk[k, GK_REP] in (gk[a, GK_REP], gk[b, GK_REP])
+        # The pair estimate's albedo: the weighted sum of the points' rho_d.
+        assert np.allclose(gn[k, GN_WRD:GN_WRD + 3], (gp[pts, GP_W][:, None] * gp[pts, GP_RD:GP_RD + 3]).sum(0))
+        # Multiple gather representatives: column 0 the tree's own, each a point of the node that
+        # one child also has in that column.
+        for r in range(4):
+            assert greps[k, r] in pts and greps[k, r] in (greps[a, r], greps[b, r])
+        assert greps[k, 0] == gk[k, GK_REP]
         # The cones hold every normal and every mirror direction below them.
         for ax, cs, col in ((GN_NAX, GN_NCOS, GP_NRM), (GN_RAX, GN_RCOS, GP_REFL)):
             cos = gp[pts, col:col + 3] @ gn[k, ax:ax + 3]
@@ -175,26 +185,58 @@ def test_one_gather_point_is_the_lightcut(cornell):
     np.testing.assert_array_equal(md.cut_size, one.cut_size)
 
 
-def test_refining_everything_gives_the_brute_force_sum(cornell):
+@pytest.mark.parametrize("gather_reps", [1, 4])
+def test_refining_everything_gives_the_brute_force_sum(cornell, gather_reps):
     scene, caster, camera, lights, trees = cornell
     ref = render_multidimensional_reference(scene, caster, lights, camera=camera, spp=4, seed=3)
     full = render_multidimensional(scene, caster, lights, trees, camera=camera, spp=4, seed=3, eps=0.0,
-                                   max_cut=10 ** 5)
+                                   max_cut=10 ** 5, gather_representatives=gather_reps)
     n = len(lights["oriented"])
     assert ref.cut_size.max() == 4 * n and full.cut_size.max() > n
     np.testing.assert_allclose(full.image, ref.image, rtol=1e-5, atol=1e-6 * ref.image.max())
     # With a coarse eps the cut is far smaller and still close.
-    md = render_multidimensional(scene, caster, lights, trees, camera=camera, spp=4, seed=3, eps=0.02)
+    md = render_multidimensional(scene, caster, lights, trees, camera=camera, spp=4, seed=3, eps=0.02,
+                                 gather_representatives=gather_reps)
     a, b = luminance(md.image), luminance(ref.image)
     keep = b > 1e-3 * b.max()
     assert np.median(np.abs(a - b)[keep] / b[keep]) < 0.03
     assert md.cut_size.mean() < 0.2 * 4 * n
 
 
-def test_same_image_on_any_thread_count_and_for_listed_pixels(cornell, thread_counts):
+def test_gather_clusters_of_unlike_albedo_estimate_their_mean():
+    # A floor of stripes far narrower than a pixel, albedo 0.9 and 0.05 in turn, under lights
+    # above it: every gather cluster mixes both albedos, and the pair estimate uses the cluster's
+    # mean albedo, so a coarse cut is close to the sum over all pairs. (With the representative
+    # point's own albedo the image is 0.05 / 0.475 or 0.9 / 0.475 of it, pixel by pixel.)
+    from lightcuts.scene.scene import Scene
+
+    k = 400
+    x = np.linspace(-1.0, 1.0, k + 1)
+    v = np.concatenate([np.stack([x, np.zeros_like(x), np.full_like(x, -1.0)], 1),
+                        np.stack([x, np.zeros_like(x), np.full_like(x, 1.0)], 1)])
+    faces = np.concatenate([[[i, k + 1 + i, i + 1], [i + 1, k + 1 + i, k + 2 + i]] for i in range(k)])
+    albedo = np.repeat(np.where(np.arange(k) % 2 == 0, 0.9, 0.05), 2)[:, None].repeat(3, 1)
+    zero = np.zeros((len(faces), 3))
+    camera = Camera([0.0, 2.0, 0.01], [0.0, 0.0, 0.0], [0, 0, -1], 40.0, 12, 12)
+    scene = Scene(v, faces.astype(np.int32), albedo, zero, np.zeros(len(faces)), zero, camera)
+    rng = np.random.default_rng(0)
+    pos = np.stack([rng.uniform(-1, 1, 300), rng.uniform(0.5, 1.5, 300), rng.uniform(-1, 1, 300)], 1)
+    lights = LightSet(pos, np.tile([0.0, -1.0, 0.0], (300, 1)), rng.random((300, 3)) + 0.5, "oriented")
+    trees = {"oriented": build_tree(lights, "divisive-6d", seed=1)}
+    with make_caster(scene, "embree") as caster:
+        ref = render_multidimensional_reference(scene, caster, {"oriented": lights}, spp=16, clamp=False)
+        md = render_multidimensional(scene, caster, {"oriented": lights}, trees, spp=16, eps=0.02, clamp=False)
+    a, b = luminance(md.image), luminance(ref.image)
+    assert md.cut_size.mean() < 0.1 * 16 * 300
+    assert np.max(np.abs(a - b) / b) < 0.05
+
+
+@pytest.mark.parametrize("gather_reps", [1, 4])
+def test_same_image_on_any_thread_count_and_for_listed_pixels(cornell, thread_counts, gather_reps):
     scene, caster, camera, lights, trees = cornell
     (n1, n2), num_threads = thread_counts
-    kwargs = dict(camera=camera, spp=4, seed=7, aperture=20.0, focus_distance=800.0)
+    kwargs = dict(camera=camera, spp=4, seed=7, aperture=20.0, focus_distance=800.0,
+                  gather_representatives=gather_reps)
     with num_threads(n1):
         one = render_multidimensional(scene, caster, lights, trees, **kwargs)
     with num_threads(n2):
@@ -252,7 +294,7 @@ def test_plan_refuses_an_aperture_for_a_pinhole_integrator(tmp_path):
     (tmp_path / "run.yaml").write_text("scene: {builtin: cornell}\ncamera: {aperture: 0.1}\n"
                                        "render: {integrator: {type: multidimensional, representatives: 2}}\n")
     plan = plan_run(load_config(tmp_path / "run.yaml"), render=True)
-    assert plan.record()["integrator"] == {"type": "multidimensional", "representatives": 2}
+    assert plan.record()["integrator"] == {"type": "multidimensional", "representatives": 2, "gather_representatives": 1}
 
 
 def test_warm_kernels_compiles_the_specialisation_renders_use(cornell):

@@ -7,7 +7,8 @@ longest axis of its 6D box (position, and normal scaled by the root box's diagon
 divisive-6d light-tree builder does); points on one spot are split evenly by index. Per node
 (``GN_*`` columns of ``gn``, (2 spp, GN_WIDTH) float64): position box, box of normals and its cone,
 box of mirror directions and its cone, per-channel maximum rho_d and rho_s, exponent range, summed
-weight and the half-angle of the normal cone (the refinement rule's size); ``gk`` ((2 spp, 3)
+weight, the half-angle of the normal cone (the refinement rule's size) and the weighted sum of the
+points' rho_d (sum w_i rho_d,i per channel: the pair estimate's diffuse albedo); ``gk`` ((2 spp, 3)
 int64): children and the representative gather point, chosen as lightcuts chooses light
 representatives (the left child's with probability W_left / W, else the right one's), seeded per
 pixel and node. Cones come from boxes of unit vectors (docs/math.md, "Normal cones from a box of
@@ -23,7 +24,7 @@ from lightcuts.render.camera import hash_uniform
 from lightcuts.render.multidim.gather import GP_EXP, GP_NRM, GP_POS, GP_RD, GP_REFL, GP_RS, GP_W
 
 (GN_LO, GN_HI, GN_NLO, GN_NHI, GN_RLO, GN_RHI, GN_NAX, GN_NCOS, GN_RAX, GN_RCOS, GN_RD, GN_RS, GN_EMIN,
- GN_EMAX, GN_W, GN_ANG, GN_WIDTH) = 0, 3, 6, 9, 12, 15, 18, 21, 22, 25, 26, 29, 32, 33, 34, 35, 36
+ GN_EMAX, GN_W, GN_ANG, GN_WRD, GN_WIDTH) = 0, 3, 6, 9, 12, 15, 18, 21, 22, 25, 26, 29, 32, 33, 34, 35, 36, 39
 GK_LEFT, GK_RIGHT, GK_REP = 0, 1, 2
 #: Seed offset of the representatives' random numbers (the eye rays use the run seed itself).
 REP_SEED = 0x5EED
@@ -92,6 +93,7 @@ def _leaf(gp, gn, gk, i):
         gn[i, GN_RAX + c] = gp[i, GP_REFL + c]
         gn[i, GN_RD + c] = gp[i, GP_RD + c]
         gn[i, GN_RS + c] = gp[i, GP_RS + c]
+        gn[i, GN_WRD + c] = gp[i, GP_W] * gp[i, GP_RD + c]
     gn[i, GN_NCOS] = 1.0
     gn[i, GN_RCOS] = 1.0
     gn[i, GN_EMIN] = gp[i, GP_EXP]
@@ -111,6 +113,7 @@ def _union(gn, gk, k, a, b, seed, pixel):
             gn[k, hi + c] = max(gn[a, hi + c], gn[b, hi + c])
         gn[k, GN_RD + c] = max(gn[a, GN_RD + c], gn[b, GN_RD + c])
         gn[k, GN_RS + c] = max(gn[a, GN_RS + c], gn[b, GN_RS + c])
+        gn[k, GN_WRD + c] = gn[a, GN_WRD + c] + gn[b, GN_WRD + c]
     for lo, ax, cs in ((GN_NLO, GN_NAX, GN_NCOS), (GN_RLO, GN_RAX, GN_RCOS)):
         hi = lo + 3
         x0, x1, x2, cc = box_cone(gn[k, lo], gn[k, lo + 1], gn[k, lo + 2], gn[k, hi], gn[k, hi + 1], gn[k, hi + 2])
@@ -167,3 +170,24 @@ def build_gather_tree(gp, n, gn, gk, idx, stack, seed, pixel):
     for k in range(2 * n - 2, n - 1, -1):
         _union(gn, gk, k, gk[k, GK_LEFT], gk[k, GK_RIGHT], seed, pixel)
     return n
+
+
+@njit(cache=True, error_model="numpy")
+def gather_representatives(gn, gk, n, seed, pixel, greps):
+    """greps ((>= 2n - 1, R) int64): R representative gather points per node of the tree over n
+    points, as light_representatives draws the lights': column 0 is the tree's own (GK_REP), column
+    r > 0 is drawn bottom up (the left child's column-r representative with probability W_left / W,
+    seeded by pixel, node and column), so a parent's is always one of its children's."""
+    r_count = greps.shape[1]
+    for i in range(n):
+        for r in range(r_count):
+            greps[i, r] = i
+    if n == 1:
+        return
+    for k in range(2 * n - 2, n - 1, -1):
+        a, b = gk[k, GK_LEFT], gk[k, GK_RIGHT]
+        wa, wb = gn[a, GN_W], gn[b, GN_W]
+        greps[k, 0] = gk[k, GK_REP]
+        for r in range(1, r_count):
+            u = hash_uniform(seed + REP_SEED, pixel, k, r)
+            greps[k, r] = greps[a, r] if u * (wa + wb) < wa else greps[b, r]

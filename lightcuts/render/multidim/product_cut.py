@@ -22,7 +22,7 @@ from lightcuts.render.bounds import DIRECTIONAL
 from lightcuts.render.forest import NB_HI, NB_I, NB_LEFT, NB_LO, NB_REP, NF_I, NK_LEFT, NK_REP, NK_RIGHT, REP_BITS
 from lightcuts.render.heap import SLOT_MASK, entry_bound, heap_entry, heap_push, sift_down
 from lightcuts.render.multidim.gather import GP_EXP, GP_NRM, GP_POS, GP_RD, GP_REFL, GP_RS, GP_W
-from lightcuts.render.multidim.gather_tree import GK_LEFT, GK_REP, GN_ANG, GN_HI, GN_LO, GN_W
+from lightcuts.render.multidim.gather_tree import GK_LEFT, GN_ANG, GN_HI, GN_LO, GN_W, GN_WRD
 from lightcuts.render.multidim.pair_bounds import pair_bound
 from lightcuts.render.reference import all_lights
 
@@ -50,12 +50,18 @@ def light_representatives(node_f, node_k, r_count, seed, lreps):
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
-def _mgv(gp, g, j, light_f, clamp_d2, ray_offset, visibility, cdata, buf):
-    """M G V (RGB), clamp ratio and shadow rays of light j at gather point g (light_mgv)."""
+def _mgv(gp, gn, gk, node, g, j, light_f, clamp_d2, ray_offset, visibility, cdata, buf):
+    """M G V (RGB), clamp ratio and shadow rays of light j at gather point g, the representative of
+    gather node ``node``, with the node's mean diffuse albedo (sum w_i rho_d,i / W) in place of g's
+    own (g's specular part, normal and mirror direction); a leaf uses its point's material as is."""
+    rd0, rd1, rd2 = gp[g, GP_RD], gp[g, GP_RD + 1], gp[g, GP_RD + 2]
+    if gk[node, GK_LEFT] >= 0:
+        w = gn[node, GN_W]
+        rd0, rd1, rd2 = gn[node, GN_WRD] / w, gn[node, GN_WRD + 1] / w, gn[node, GN_WRD + 2] / w
     return light_mgv(j, light_f, gp[g, GP_POS], gp[g, GP_POS + 1], gp[g, GP_POS + 2], gp[g, GP_NRM],
                      gp[g, GP_NRM + 1], gp[g, GP_NRM + 2], gp[g, GP_REFL], gp[g, GP_REFL + 1], gp[g, GP_REFL + 2],
-                     gp[g, GP_RD], gp[g, GP_RD + 1], gp[g, GP_RD + 2], gp[g, GP_RS], gp[g, GP_RS + 1],
-                     gp[g, GP_RS + 2], gp[g, GP_EXP], clamp_d2, ray_offset, visibility, cdata, buf)
+                     rd0, rd1, rd2, gp[g, GP_RS], gp[g, GP_RS + 1], gp[g, GP_RS + 2], gp[g, GP_EXP], clamp_d2,
+                     ray_offset, visibility, cdata, buf)
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
@@ -83,31 +89,34 @@ def refine_gather(gn, gk, g, node_b, node_bi, k):
 
 
 @njit(cache=True, error_model="numpy")
-def product_cut(gp, gn, gk, groot, node_b, node_bi, roots, light_f, lreps, eps, max_cut, clamp_d2, ray_offset,
-                visibility, cdata, buf, heap, slot_g, slot_l, slot_rep, slot_mgv, slot_ratio):
+def product_cut(gp, gn, gk, greps, groot, node_b, node_bi, roots, light_f, lreps, eps, max_cut, clamp_d2, ray_offset,
+                visibility, cdata, buf, heap, slot_g, slot_l, slot_rep, slot_mgv, slot_ratio, slot_vis):
     """Reflected radiance of the pixel whose gather tree is (gp, gn, gk, groot).
 
     node_b, node_bi, roots, light_f : the forest (lightcuts.render.forest); lreps : (K, R)
     :func:`light_representatives`; eps, max_cut : the stop test; clamp_d2, ray_offset, visibility,
     cdata, buf : as lightcuts.render.cut.light_mgv; heap (uint64), slot_g, slot_l, slot_rep (int64,
-    the pair's light representative), slot_mgv (cap, 3), slot_ratio : scratch for
-    max(max_cut, roots) + 2 pairs.
+    the pair's light representative), slot_mgv (cap, 3), slot_ratio, slot_vis (bool: the
+    representatives' shadow ray is unoccluded) : scratch for max(max_cut, roots) + 2 pairs.
     Returns ``(L_r, L_g, L_b, pairs, shadow_rays, clamp_lost)`` like lightcuts.render.cut.lightcut,
     pairs = pairs in the final cut.
     """
     r_count = lreps.shape[1]
+    g_count = greps.shape[1]
     n_slots = np.int64(0)
     size = np.int64(0)
     rays = 0
     t0 = 0.0
     t1 = 0.0
     t2 = 0.0
-    grep = gk[groot, GK_REP]
     for t in range(roots.shape[0]):
         k = roots[t]
+        grep = greps[groot, k % g_count]
         j = lreps[k, grep % r_count]
-        m0, m1, m2, ratio, nr = _mgv(gp, grep, j, light_f, clamp_d2, ray_offset, visibility, cdata, buf)
+        m0, m1, m2, ratio, nr = _mgv(gp, gn, gk, groot, grep, j, light_f, clamp_d2, ray_offset, visibility,
+                                     cdata, buf)
         rays += nr
+        slot_vis[n_slots] = nr == 0 or m0 > 0.0 or m1 > 0.0 or m2 > 0.0
         w = _weight(gp, gn, gk, groot)
         slot_g[n_slots], slot_l[n_slots], slot_rep[n_slots] = groot, k, j
         slot_mgv[n_slots, 0], slot_mgv[n_slots, 1], slot_mgv[n_slots, 2] = m0, m1, m2
@@ -131,12 +140,12 @@ def product_cut(gp, gn, gk, groot, node_b, node_bi, roots, light_f, lreps, eps, 
         if size > 0:
             sift_down(heap, size, key)
         g, k, pj = slot_g[s], slot_l[s], slot_rep[s]
-        pg = gk[g, GK_REP]
+        pg = greps[g, k % g_count]
         w = _weight(gp, gn, gk, g)
         t0 -= w * slot_mgv[s, 0] * node_b[k, NB_I]
         t1 -= w * slot_mgv[s, 1] * node_b[k, NB_I + 1]
         t2 -= w * slot_mgv[s, 2] * node_b[k, NB_I + 2]
-        pm0, pm1, pm2, pratio = slot_mgv[s, 0], slot_mgv[s, 1], slot_mgv[s, 2], slot_ratio[s]
+        pm0, pm1, pm2, pratio, pvis = slot_mgv[s, 0], slot_mgv[s, 1], slot_mgv[s, 2], slot_ratio[s], slot_vis[s]
         split_g = refine_gather(gn, gk, g, node_b, node_bi, k)
         for side in range(2):
             if split_g:
@@ -144,13 +153,23 @@ def product_cut(gp, gn, gk, groot, node_b, node_bi, roots, light_f, lreps, eps, 
             else:
                 cg, ck = g, np.int64(node_bi[k, NB_LEFT]) + side
             cs = s if side == 0 else n_slots
-            rg = gk[cg, GK_REP]
+            rg = greps[cg, ck % g_count]
             j = lreps[ck, rg % r_count]
-            if rg == pg and j == pj:
-                m0, m1, m2, ratio = pm0, pm1, pm2, pratio
+            if rg == pg and j == pj and not split_g:
+                m0, m1, m2, ratio, vis = pm0, pm1, pm2, pratio, pvis
+            elif rg == pg and j == pj:
+                # The parent's shadow ray, the child's mean albedo.
+                m0, m1, m2, ratio, nr = _mgv(gp, gn, gk, cg, rg, j, light_f, clamp_d2, ray_offset, False, cdata,
+                                             buf)
+                vis = pvis
+                if not vis:
+                    m0, m1, m2 = 0.0, 0.0, 0.0
             else:
-                m0, m1, m2, ratio, nr = _mgv(gp, rg, j, light_f, clamp_d2, ray_offset, visibility, cdata, buf)
+                m0, m1, m2, ratio, nr = _mgv(gp, gn, gk, cg, rg, j, light_f, clamp_d2, ray_offset, visibility,
+                                             cdata, buf)
                 rays += nr
+                vis = nr == 0 or m0 > 0.0 or m1 > 0.0 or m2 > 0.0
+            slot_vis[cs] = vis
             w = _weight(gp, gn, gk, cg)
             slot_g[cs], slot_l[cs], slot_rep[cs] = cg, ck, j
             slot_mgv[cs, 0], slot_mgv[cs, 1], slot_mgv[cs, 2] = m0, m1, m2

@@ -29,13 +29,13 @@ from lightcuts.render.forest import build_forest
 from lightcuts.render.integrators import DEFAULT_REPRESENTATIVES
 from lightcuts.render.integrator import BAND_PIXELS, CHUNK, RenderResult, _kernel_array, shadow_ray_offset
 from lightcuts.render.multidim.gather import GP_WIDTH, pixel_gather
-from lightcuts.render.multidim.gather_tree import GN_WIDTH, build_gather_tree
+from lightcuts.render.multidim.gather_tree import GN_WIDTH, build_gather_tree, gather_representatives
 from lightcuts.render.multidim.product_cut import all_pairs, light_representatives, product_cut
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _render_band(cdata, cam, seed, spp, sx, sy, aperture, focus, x0, x1, y0, y1, face_normal, albedo, specular,
-                 exponent, emission, node_b, node_bi, roots, light_f, light_i, lreps, env_pixels, env_rotation,
+                 exponent, emission, node_b, node_bi, roots, light_f, light_i, lreps, g_count, env_pixels, env_rotation,
                  env_scale, eps, max_cut, clamp_d2, ray_offset, visibility, reference, pixels, out_rgb, out_cut,
                  out_rays, out_lost, tasks):
     """Pixels [x0, x1) x [y0, y1) (or the listed ``pixels``) into the band's rows, as
@@ -47,6 +47,7 @@ def _render_band(cdata, cam, seed, spp, sx, sy, aperture, focus, x0, x1, y0, y1,
     gp = np.empty((spp, GP_WIDTH))
     gn = np.empty((2 * spp, GN_WIDTH))
     gk = np.empty((2 * spp, 3), np.int64)
+    greps = np.empty((2 * spp, g_count), np.int64)
     idx = np.empty(spp, np.int64)
     stack = np.empty((2 * spp, 3), np.int64)
     heap = np.zeros(cap, np.uint64)
@@ -55,6 +56,7 @@ def _render_band(cdata, cam, seed, spp, sx, sy, aperture, focus, x0, x1, y0, y1,
     slot_rep = np.empty(cap, np.int64)
     slot_mgv = np.empty((cap, 3))
     slot_ratio = np.empty(cap)
+    slot_vis = np.empty(cap, np.bool_)
     width = np.int64(cam[CAM_WIDTH])
     while True:
         c = next_task(tasks)
@@ -81,9 +83,11 @@ def _render_band(cdata, cam, seed, spp, sx, sy, aperture, focus, x0, x1, y0, y1,
                                                               visibility, cdata, buf)
                 else:
                     root = build_gather_tree(gp, ng, gn, gk, idx, stack, seed, np.int64(py) * width + px)
+                    gather_representatives(gn, gk, ng, seed, np.int64(py) * width + px, greps)
                     r0, r1, r2, pairs, rays, lost = product_cut(
-                        gp, gn, gk, root, node_b, node_bi, roots, light_f, lreps, eps, max_cut, clamp_d2,
-                        ray_offset, visibility, cdata, buf, heap, slot_g, slot_l, slot_rep, slot_mgv, slot_ratio)
+                        gp, gn, gk, greps, root, node_b, node_bi, roots, light_f, lreps, eps, max_cut, clamp_d2,
+                        ray_offset, visibility, cdata, buf, heap, slot_g, slot_l, slot_rep, slot_mgv, slot_ratio,
+                        slot_vis)
                 a0 += r0
                 a1 += r1
                 a2 += r2
@@ -96,7 +100,7 @@ def _render_band(cdata, cam, seed, spp, sx, sy, aperture, focus, x0, x1, y0, y1,
 
 
 def _check(camera, crop, pixels, spp, eps, max_cut, clamp_min_distance, seed, aperture, focus_distance,
-           representatives):
+           representatives, gather_representatives):
     """The window and pixel list after the checks (LightcutsError naming the key on bad input)."""
     x0, y0, x1, y1 = check_crop(crop, camera)
     if pixels is None:
@@ -124,6 +128,9 @@ def _check(camera, crop, pixels, spp, eps, max_cut, clamp_min_distance, seed, ap
         raise LightcutsError(f"camera.focus_distance: {focus_distance} must be a finite number > 0")
     if int(representatives) != representatives or not 1 <= representatives <= 64:
         raise LightcutsError(f"render.integrator.representatives: {representatives} must be an integer from 1 to 64")
+    if int(gather_representatives) != gather_representatives or not 1 <= gather_representatives <= 64:
+        raise LightcutsError(f"render.integrator.gather_representatives: {gather_representatives} must be an "
+                             f"integer from 1 to 64")
     return x0, y0, x1, y1, pix
 
 
@@ -132,21 +139,24 @@ def render_multidimensional(scene, caster, lights: dict, trees: dict | None, cam
                             clamp_min_distance: float = 0.05, envmap=None, seed: int = 0, crop=None,
                             progress=None, reference: bool = False, visibility: bool = True, pixels=None,
                             aperture: float = 0.0, focus_distance: float | None = None,
-                            representatives: int = DEFAULT_REPRESENTATIVES) -> RenderResult:
+                            representatives: int = DEFAULT_REPRESENTATIVES,
+                            gather_representatives: int = 1) -> RenderResult:
     """Render with multidimensional lightcuts: one product cut per pixel over its ``spp`` gather points.
 
     Arguments as lightcuts.render.integrator.render_image (``cut_size`` of the result: pairs in the
     pixel's cut; ``max_cut``: the largest cut in pairs), plus aperture : lens radius, world units
     (0: pinhole, exactly render_image's eye rays); focus_distance : distance of the plane in focus
     along the view axis (None: |look_at - position|); representatives : light representatives per
-    light node (1: the tree's own only). ``reference=True`` (``trees`` may be None) sums every gather
+    light node (1: the tree's own only); gather_representatives : representative gather points per
+    gather node, the pair (G, L) using the one of column L mod R (1: the gather tree's own only;
+    more decorrelates the pairs' errors at the cost of shadow rays). ``reference=True`` (``trees`` may be None) sums every gather
     point with every light instead of cutting: the brute-force reference of the same gather points.
     """
     t_start = time.perf_counter()
     camera = camera if camera is not None else scene.camera
     cam = camera_params(camera)
     x0, y0, x1, y1, pix = _check(camera, crop, pixels, spp, eps, max_cut, clamp_min_distance, seed, aperture,
-                                 focus_distance, representatives)
+                                 focus_distance, representatives, gather_representatives)
     kc = kernel_caster_of(caster)
     if kc is None:
         raise LightcutsError(f"render.ray_caster: {type(caster).__name__} cannot be called from kernels; "
@@ -181,7 +191,8 @@ def render_multidimensional(scene, caster, lights: dict, trees: dict | None, cam
         b1 = min(rows, b0 + band)
         on_counter(_render_band, (b1 - b0) * cols, 2 * CHUNK, cdata, cam, seed, spp, sx, sy, float(aperture), focus,
                    x0, x1, y0 + b0, y0 + b1, face_normal, albedo, specular, exponent, emission, f.node_b, f.node_bi,
-                   f.roots, f.light_f, f.light_i, lreps, env_pixels, env_rotation, env_scale, float(eps), max_cut,
+                   f.roots, f.light_f, f.light_i, lreps, int(gather_representatives), env_pixels, env_rotation,
+                   env_scale, float(eps), max_cut,
                    float(clamp_d2), float(shadow_ray_offset(scene)), bool(visibility), bool(reference),
                    pix[b0:b1] if len(pix) else pix, rgb[b0:b1], cut[b0:b1], rays[b0:b1], lost[b0:b1])
         if progress is not None:
