@@ -19,7 +19,7 @@ from lightcuts.render.integrator import render_image
 from lightcuts.render.multidim import render_multidimensional, render_multidimensional_reference
 from lightcuts.render.multidim.gather import (GP_EXP, GP_NRM, GP_POS, GP_RD, GP_REFL, GP_RS, GP_W, GP_WIDTH)
 from lightcuts.render.multidim.gather_tree import (GK_LEFT, GK_REP, GK_RIGHT, GN_EMAX, GN_EMIN, GN_HI, GN_LO,
-                                                   GN_NAX, GN_NCOS, GN_RAX, GN_RCOS, GN_RD, GN_RS, GN_W, GN_WIDTH, GN_WRD,
+                                                   GN_NAX, GN_NCOS, GN_RAX, GN_RCOS, GN_RD, GN_RS, GN_W, GN_WIDTH, GK_FIRST, GK_LAST, GK_WIDTH,
                                                    build_gather_tree, gather_representatives)
 from lightcuts.render.multidim.pair_bounds import pair_bound
 from lightcuts.render.multidim.product_cut import light_representatives
@@ -65,9 +65,10 @@ def random_gather_points(n, rng, spread=0.3):
 def build(gp, seed=0):
     n = len(gp)
     gn = np.zeros((2 * n, GN_WIDTH))
-    gk = np.zeros((2 * n, 3), np.int64)
-    root = build_gather_tree(gp, n, gn, gk, np.zeros(n, np.int64), np.zeros((2 * n, 3), np.int64), seed, 5)
-    return gn, gk, root
+    gk = np.zeros((2 * n, GK_WIDTH), np.int64)
+    idx = np.zeros(n, np.int64)
+    root = build_gather_tree(gp, n, gn, gk, idx, np.zeros((2 * n, 3), np.int64), seed, 5)
+    return gn, gk, root, idx
 
 
 def subtree(children, k):
@@ -93,7 +94,7 @@ def test_pair_bound_holds_for_every_pair_it_covers(light_type, seed):
     forest = build_forest({light_type: ls}, {light_type: build_tree(ls, "divisive-6d", seed=seed)})
     nk = forest.node_k
     gp = random_gather_points(12, rng)
-    gn, gk, root = build(gp, seed)
+    gn, gk, root, _ = build(gp, seed)
     clamp_d2 = 0.01 if seed % 2 else 0.0
     typ = {"oriented": ORIENTED, "omni": 0, "directional": DIRECTIONAL}[light_type]
     checked = 0
@@ -127,7 +128,7 @@ def test_gather_trees_are_valid(n):
     gp = random_gather_points(n, rng)
     if n > 3:
         gp[1, :] = gp[0, :]  # two points on one spot
-    gn, gk, root = build(gp)
+    gn, gk, root, idx = build(gp)
     greps = np.full((2 * n, 4), -1, np.int64)
     gather_representatives(gn, gk, n, 0, 5, greps)
     assert np.array_equal(greps[:n], np.repeat(np.arange(n)[:, None], 4, 1))
@@ -146,8 +147,8 @@ def test_gather_trees_are_valid(n):
         assert np.isclose(gn[k, GN_W], gp[pts, GP_W].sum())
         assert gn[k, GN_EMIN] == gp[pts, GP_EXP].min() and gn[k, GN_EMAX] == gp[pts, GP_EXP].max()
         assert gk[k, GK_REP] in pts and gk[k, GK_REP] in (gk[a, GK_REP], gk[b, GK_REP])
-        # The pair estimate's albedo: the weighted sum of the points' rho_d.
-        assert np.allclose(gn[k, GN_WRD:GN_WRD + 3], (gp[pts, GP_W][:, None] * gp[pts, GP_RD:GP_RD + 3]).sum(0))
+        # The range of idx that lists the node's points (the pair estimate sums their materials).
+        assert sorted(idx[gk[k, GK_FIRST]:gk[k, GK_LAST]]) == sorted(pts)
         # Multiple gather representatives: column 0 the tree's own, each a point of the node that
         # one child also has in that column.
         for r in range(4):
@@ -229,6 +230,14 @@ def test_gather_clusters_of_unlike_albedo_estimate_their_mean():
     a, b = luminance(md.image), luminance(ref.image)
     assert md.cut_size.mean() < 0.1 * 16 * 300
     assert np.max(np.abs(a - b) / b) < 0.05
+
+
+def test_max_cut_counts_pairs_per_gather_point(cornell):
+    # render.max_cut is the budget per eye ray for both integrators: a pixel of G gather points may
+    # hold max_cut * G pairs.
+    scene, caster, camera, lights, trees = cornell
+    md = render_multidimensional(scene, caster, lights, trees, camera=camera, spp=4, eps=0.0, max_cut=5)
+    assert md.cut_size.max() == 20
 
 
 @pytest.mark.parametrize("gather_reps", [1, 4])

@@ -7,9 +7,10 @@ longest axis of its 6D box (position, and normal scaled by the root box's diagon
 divisive-6d light-tree builder does); points on one spot are split evenly by index. Per node
 (``GN_*`` columns of ``gn``, (2 spp, GN_WIDTH) float64): position box, box of normals and its cone,
 box of mirror directions and its cone, per-channel maximum rho_d and rho_s, exponent range, summed
-weight, the half-angle of the normal cone (the refinement rule's size) and the weighted sum of the
-points' rho_d (sum w_i rho_d,i per channel: the pair estimate's diffuse albedo); ``gk`` ((2 spp, 3)
-int64): children and the representative gather point, chosen as lightcuts chooses light
+weight and the half-angle of the normal cone (the refinement rule's size); ``gk`` ((2 spp, GK_WIDTH)
+int64): children, the representative gather point and, for an inner node, the range
+``idx[first:last]`` of the build's ``idx`` that lists its points (the pair estimate sums their
+materials); chosen as lightcuts chooses light
 representatives (the left child's with probability W_left / W, else the right one's), seeded per
 pixel and node. Cones come from boxes of unit vectors (docs/math.md, "Normal cones from a box of
 normals"), so each holds every normal of its points.
@@ -24,8 +25,8 @@ from lightcuts.render.camera import hash_uniform
 from lightcuts.render.multidim.gather import GP_EXP, GP_NRM, GP_POS, GP_RD, GP_REFL, GP_RS, GP_W
 
 (GN_LO, GN_HI, GN_NLO, GN_NHI, GN_RLO, GN_RHI, GN_NAX, GN_NCOS, GN_RAX, GN_RCOS, GN_RD, GN_RS, GN_EMIN,
- GN_EMAX, GN_W, GN_ANG, GN_WRD, GN_WIDTH) = 0, 3, 6, 9, 12, 15, 18, 21, 22, 25, 26, 29, 32, 33, 34, 35, 36, 39
-GK_LEFT, GK_RIGHT, GK_REP = 0, 1, 2
+ GN_EMAX, GN_W, GN_ANG, GN_WIDTH) = 0, 3, 6, 9, 12, 15, 18, 21, 22, 25, 26, 29, 32, 33, 34, 35, 36
+GK_LEFT, GK_RIGHT, GK_REP, GK_FIRST, GK_LAST, GK_WIDTH = 0, 1, 2, 3, 4, 5
 #: Seed offset of the representatives' random numbers (the eye rays use the run seed itself).
 REP_SEED = 0x5EED
 
@@ -93,7 +94,6 @@ def _leaf(gp, gn, gk, i):
         gn[i, GN_RAX + c] = gp[i, GP_REFL + c]
         gn[i, GN_RD + c] = gp[i, GP_RD + c]
         gn[i, GN_RS + c] = gp[i, GP_RS + c]
-        gn[i, GN_WRD + c] = gp[i, GP_W] * gp[i, GP_RD + c]
     gn[i, GN_NCOS] = 1.0
     gn[i, GN_RCOS] = 1.0
     gn[i, GN_EMIN] = gp[i, GP_EXP]
@@ -103,6 +103,8 @@ def _leaf(gp, gn, gk, i):
     gk[i, GK_LEFT] = -1
     gk[i, GK_RIGHT] = -1
     gk[i, GK_REP] = i
+    gk[i, GK_FIRST] = -1
+    gk[i, GK_LAST] = -1
 
 
 @njit(cache=True, error_model="numpy")
@@ -113,7 +115,6 @@ def _union(gn, gk, k, a, b, seed, pixel):
             gn[k, hi + c] = max(gn[a, hi + c], gn[b, hi + c])
         gn[k, GN_RD + c] = max(gn[a, GN_RD + c], gn[b, GN_RD + c])
         gn[k, GN_RS + c] = max(gn[a, GN_RS + c], gn[b, GN_RS + c])
-        gn[k, GN_WRD + c] = gn[a, GN_WRD + c] + gn[b, GN_WRD + c]
     for lo, ax, cs in ((GN_NLO, GN_NAX, GN_NCOS), (GN_RLO, GN_RAX, GN_RCOS)):
         hi = lo + 3
         x0, x1, x2, cc = box_cone(gn[k, lo], gn[k, lo + 1], gn[k, lo + 2], gn[k, hi], gn[k, hi + 1], gn[k, hi + 2])
@@ -133,7 +134,8 @@ def _union(gn, gk, k, a, b, seed, pixel):
 def build_gather_tree(gp, n, gn, gk, idx, stack, seed, pixel):
     """Build the tree over gp's first n rows (n >= 1) into gn, gk; returns the root's id.
 
-    idx : (>= n,) int64 scratch; stack : (>= 2 n, 3) int64 scratch; seed, pixel : the run seed and
+    idx : (>= n,) int64, the points in the tree's order on return (an inner node's are
+    ``idx[gk[k, GK_FIRST]:gk[k, GK_LAST]]``); stack : (>= 2 n, 3) int64 scratch; seed, pixel : the run seed and
     the pixel's index in the full image (the representatives' random numbers).
     """
     for i in range(n):
@@ -157,6 +159,7 @@ def build_gather_tree(gp, n, gn, gk, idx, stack, seed, pixel):
         top -= 1
         s, e, k = stack[top, 0], stack[top, 1], stack[top, 2]
         m = _split(gp, idx, s, e, scale)
+        gk[k, GK_FIRST], gk[k, GK_LAST] = s, e
         for side in range(2):
             a, b = (s, m) if side == 0 else (m, e)
             if b - a == 1:

@@ -17,14 +17,17 @@ import numpy as np
 from numba import njit
 
 from lightcuts.render.camera import hash_uniform
-from lightcuts.render.cut import light_mgv, luminance
+from lightcuts.accel.kernel_api import occluded
+from lightcuts.render.cut import _light_mg, light_mgv, luminance
 from lightcuts.render.bounds import DIRECTIONAL
-from lightcuts.render.forest import NB_HI, NB_I, NB_LEFT, NB_LO, NB_REP, NF_I, NK_LEFT, NK_REP, NK_RIGHT, REP_BITS
+from lightcuts.render.forest import (LF_INDIRECT, LF_NRM, LF_POS, LF_TYPE, NB_HI, NB_I, NB_LEFT, NB_LO, NB_REP, NF_I,
+                                     NK_LEFT, NK_REP, NK_RIGHT, REP_BITS)
 from lightcuts.render.heap import SLOT_MASK, entry_bound, heap_entry, heap_push, sift_down
 from lightcuts.render.multidim.gather import GP_EXP, GP_NRM, GP_POS, GP_RD, GP_REFL, GP_RS, GP_W
-from lightcuts.render.multidim.gather_tree import GK_LEFT, GN_ANG, GN_HI, GN_LO, GN_W, GN_WRD
+from lightcuts.render.multidim.gather_tree import GK_FIRST, GK_LAST, GK_LEFT, GN_ANG, GN_HI, GN_LO, GN_W
 from lightcuts.render.multidim.pair_bounds import pair_bound
 from lightcuts.render.reference import all_lights
+from lightcuts.render.shading import light_geometry, material_term
 
 
 @njit(cache=True, nogil=True)
@@ -49,19 +52,61 @@ def light_representatives(node_f, node_k, r_count, seed, lreps):
             lreps[k, r] = lreps[a, r] if u * (la + lb) < la else lreps[b, r]
 
 
-@njit(cache=True, error_model="numpy", forceinline=True)
-def _mgv(gp, gn, gk, node, g, j, light_f, clamp_d2, ray_offset, visibility, cdata, buf):
-    """M G V (RGB), clamp ratio and shadow rays of light j at gather point g, the representative of
-    gather node ``node``, with the node's mean diffuse albedo (sum w_i rho_d,i / W) in place of g's
-    own (g's specular part, normal and mirror direction); a leaf uses its point's material as is."""
-    rd0, rd1, rd2 = gp[g, GP_RD], gp[g, GP_RD + 1], gp[g, GP_RD + 2]
-    if gk[node, GK_LEFT] >= 0:
-        w = gn[node, GN_W]
-        rd0, rd1, rd2 = gn[node, GN_WRD] / w, gn[node, GN_WRD + 1] / w, gn[node, GN_WRD + 2] / w
-    return light_mgv(j, light_f, gp[g, GP_POS], gp[g, GP_POS + 1], gp[g, GP_POS + 2], gp[g, GP_NRM],
-                     gp[g, GP_NRM + 1], gp[g, GP_NRM + 2], gp[g, GP_REFL], gp[g, GP_REFL + 1], gp[g, GP_REFL + 2],
-                     rd0, rd1, rd2, gp[g, GP_RS], gp[g, GP_RS + 1], gp[g, GP_RS + 2], gp[g, GP_EXP], clamp_d2,
-                     ray_offset, visibility, cdata, buf)
+@njit(cache=True, error_model="numpy")
+def _mgv(gp, gk, gidx, node, g, j, light_f, clamp_d2, ray_offset, visibility, cdata, buf):
+    """M G V (RGB), clamp ratio and shadow rays of light j for gather node ``node`` at its
+    representative point g, per unit weight of the node: a leaf is lightcuts.render.cut.light_mgv
+    at its point; an inner node takes G (and the direction w) at g and the weighted mean over its
+    points i of their own materials M_i(w) (normal, mirror direction, rho_d, rho_s, exponent), with
+    one shadow ray from g (or, where g faces away from the light, from the first point that faces
+    it): so a pixel over several materials or orientations is shaded with their mix."""
+    if gk[node, GK_LEFT] < 0:
+        return light_mgv(j, light_f, gp[g, GP_POS], gp[g, GP_POS + 1], gp[g, GP_POS + 2], gp[g, GP_NRM],
+                         gp[g, GP_NRM + 1], gp[g, GP_NRM + 2], gp[g, GP_REFL], gp[g, GP_REFL + 1],
+                         gp[g, GP_REFL + 2], gp[g, GP_RD], gp[g, GP_RD + 1], gp[g, GP_RD + 2], gp[g, GP_RS],
+                         gp[g, GP_RS + 1], gp[g, GP_RS + 2], gp[g, GP_EXP], clamp_d2, ray_offset, visibility,
+                         cdata, buf)
+    typ = np.int64(light_f[j, LF_TYPE])
+    c2 = clamp_d2 if light_f[j, LF_INDIRECT] > 0.0 else 0.0
+    p0, p1, p2 = light_f[j, LF_POS], light_f[j, LF_POS + 1], light_f[j, LF_POS + 2]
+    l0, l1, l2 = light_f[j, LF_NRM], light_f[j, LF_NRM + 1], light_f[j, LF_NRM + 2]
+    w0, w1, w2, _, geo, ratio = light_geometry(typ, p0, p1, p2, l0, l1, l2, gp[g, GP_POS], gp[g, GP_POS + 1],
+                                               gp[g, GP_POS + 2], c2)
+    if geo <= 0.0:
+        return 0.0, 0.0, 0.0, 1.0, 0
+    m0 = 0.0
+    m1 = 0.0
+    m2 = 0.0
+    weight = 0.0
+    s = g if gp[g, GP_NRM] * w0 + gp[g, GP_NRM + 1] * w1 + gp[g, GP_NRM + 2] * w2 > 0.0 else np.int64(-1)
+    for t in range(gk[node, GK_FIRST], gk[node, GK_LAST]):
+        i = gidx[t]
+        a0, a1, a2 = material_term(gp[i, GP_NRM], gp[i, GP_NRM + 1], gp[i, GP_NRM + 2], gp[i, GP_REFL],
+                                   gp[i, GP_REFL + 1], gp[i, GP_REFL + 2], gp[i, GP_RD], gp[i, GP_RD + 1],
+                                   gp[i, GP_RD + 2], gp[i, GP_RS], gp[i, GP_RS + 1], gp[i, GP_RS + 2],
+                                   gp[i, GP_EXP], w0, w1, w2)
+        wi = gp[i, GP_W]
+        weight += wi
+        m0 += wi * a0
+        m1 += wi * a1
+        m2 += wi * a2
+        if s < 0 and (a0 > 0.0 or a1 > 0.0 or a2 > 0.0):
+            s = i
+    if s < 0 or not (m0 > 0.0 or m1 > 0.0 or m2 > 0.0):
+        return 0.0, 0.0, 0.0, 1.0, 0
+    f = geo / weight
+    m0, m1, m2 = m0 * f, m1 * f, m2 * f
+    if not visibility:
+        return m0, m1, m2, ratio, 0
+    # The shadow ray of light j from point s, as light_mgv casts it (a unit diffuse material: lit
+    # wherever s faces the light).
+    _, _, _, _, lit, o0, o1, o2, d0, d1, d2, tfar = _light_mg(
+        typ, p0, p1, p2, l0, l1, l2, c2, gp[s, GP_POS], gp[s, GP_POS + 1], gp[s, GP_POS + 2], gp[s, GP_NRM],
+        gp[s, GP_NRM + 1], gp[s, GP_NRM + 2], gp[s, GP_REFL], gp[s, GP_REFL + 1], gp[s, GP_REFL + 2], 1.0, 1.0,
+        1.0, 0.0, 0.0, 0.0, 0.0, ray_offset)
+    if not lit or (tfar > 0.0 and occluded(cdata, buf, o0, o1, o2, d0, d1, d2, 0.0, tfar)):
+        return 0.0, 0.0, 0.0, 1.0, 1
+    return m0, m1, m2, ratio, 1
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
@@ -89,9 +134,10 @@ def refine_gather(gn, gk, g, node_b, node_bi, k):
 
 
 @njit(cache=True, error_model="numpy")
-def product_cut(gp, gn, gk, greps, groot, node_b, node_bi, roots, light_f, lreps, eps, max_cut, clamp_d2, ray_offset,
+def product_cut(gp, gn, gk, gidx, greps, groot, node_b, node_bi, roots, light_f, lreps, eps, max_cut, clamp_d2, ray_offset,
                 visibility, cdata, buf, heap, slot_g, slot_l, slot_rep, slot_mgv, slot_ratio, slot_vis):
-    """Reflected radiance of the pixel whose gather tree is (gp, gn, gk, groot).
+    """Reflected radiance of the pixel whose gather tree is (gp, gn, gk, groot), gidx the points in
+    the tree's order (lightcuts.render.multidim.gather_tree), greps its representatives (R_G columns).
 
     node_b, node_bi, roots, light_f : the forest (lightcuts.render.forest); lreps : (K, R)
     :func:`light_representatives`; eps, max_cut : the stop test; clamp_d2, ray_offset, visibility,
@@ -113,7 +159,7 @@ def product_cut(gp, gn, gk, greps, groot, node_b, node_bi, roots, light_f, lreps
         k = roots[t]
         grep = greps[groot, k % g_count]
         j = lreps[k, grep % r_count]
-        m0, m1, m2, ratio, nr = _mgv(gp, gn, gk, groot, grep, j, light_f, clamp_d2, ray_offset, visibility,
+        m0, m1, m2, ratio, nr = _mgv(gp, gk, gidx, groot, grep, j, light_f, clamp_d2, ray_offset, visibility,
                                      cdata, buf)
         rays += nr
         slot_vis[n_slots] = nr == 0 or m0 > 0.0 or m1 > 0.0 or m2 > 0.0
@@ -159,13 +205,13 @@ def product_cut(gp, gn, gk, greps, groot, node_b, node_bi, roots, light_f, lreps
                 m0, m1, m2, ratio, vis = pm0, pm1, pm2, pratio, pvis
             elif rg == pg and j == pj:
                 # The parent's shadow ray, the child's mean albedo.
-                m0, m1, m2, ratio, nr = _mgv(gp, gn, gk, cg, rg, j, light_f, clamp_d2, ray_offset, False, cdata,
+                m0, m1, m2, ratio, nr = _mgv(gp, gk, gidx, cg, rg, j, light_f, clamp_d2, ray_offset, False, cdata,
                                              buf)
                 vis = pvis
                 if not vis:
                     m0, m1, m2 = 0.0, 0.0, 0.0
             else:
-                m0, m1, m2, ratio, nr = _mgv(gp, gn, gk, cg, rg, j, light_f, clamp_d2, ray_offset, visibility,
+                m0, m1, m2, ratio, nr = _mgv(gp, gk, gidx, cg, rg, j, light_f, clamp_d2, ray_offset, visibility,
                                              cdata, buf)
                 rays += nr
                 vis = nr == 0 or m0 > 0.0 or m1 > 0.0 or m2 > 0.0

@@ -29,7 +29,7 @@ from lightcuts.render.forest import build_forest
 from lightcuts.render.integrators import DEFAULT_REPRESENTATIVES
 from lightcuts.render.integrator import BAND_PIXELS, CHUNK, RenderResult, _kernel_array, shadow_ray_offset
 from lightcuts.render.multidim.gather import GP_WIDTH, pixel_gather
-from lightcuts.render.multidim.gather_tree import GN_WIDTH, build_gather_tree, gather_representatives
+from lightcuts.render.multidim.gather_tree import GK_WIDTH, GN_WIDTH, build_gather_tree, gather_representatives
 from lightcuts.render.multidim.product_cut import all_pairs, light_representatives, product_cut
 
 
@@ -46,7 +46,7 @@ def _render_band(cdata, cam, seed, spp, sx, sy, aperture, focus, x0, x1, y0, y1,
     buf = new_scratch(cdata)
     gp = np.empty((spp, GP_WIDTH))
     gn = np.empty((2 * spp, GN_WIDTH))
-    gk = np.empty((2 * spp, 3), np.int64)
+    gk = np.empty((2 * spp, GK_WIDTH), np.int64)
     greps = np.empty((2 * spp, g_count), np.int64)
     idx = np.empty(spp, np.int64)
     stack = np.empty((2 * spp, 3), np.int64)
@@ -85,7 +85,7 @@ def _render_band(cdata, cam, seed, spp, sx, sy, aperture, focus, x0, x1, y0, y1,
                     root = build_gather_tree(gp, ng, gn, gk, idx, stack, seed, np.int64(py) * width + px)
                     gather_representatives(gn, gk, ng, seed, np.int64(py) * width + px, greps)
                     r0, r1, r2, pairs, rays, lost = product_cut(
-                        gp, gn, gk, greps, root, node_b, node_bi, roots, light_f, lreps, eps, max_cut, clamp_d2,
+                        gp, gn, gk, idx, greps, root, node_b, node_bi, roots, light_f, lreps, eps, max_cut, clamp_d2,
                         ray_offset, visibility, cdata, buf, heap, slot_g, slot_l, slot_rep, slot_mgv, slot_ratio,
                         slot_vis)
                 a0 += r0
@@ -144,7 +144,8 @@ def render_multidimensional(scene, caster, lights: dict, trees: dict | None, cam
     """Render with multidimensional lightcuts: one product cut per pixel over its ``spp`` gather points.
 
     Arguments as lightcuts.render.integrator.render_image (``cut_size`` of the result: pairs in the
-    pixel's cut; ``max_cut``: the largest cut in pairs), plus aperture : lens radius, world units
+    pixel's cut; ``max_cut``: pairs per gather point, so the pixel's cut holds at most ``max_cut * spp``
+    pairs, up to MAX_CUT: a config means the same effort per eye ray for both integrators), plus aperture : lens radius, world units
     (0: pinhole, exactly render_image's eye rays); focus_distance : distance of the plane in focus
     along the view axis (None: |look_at - position|); representatives : light representatives per
     light node (1: the tree's own only); gather_representatives : representative gather points per
@@ -164,6 +165,7 @@ def render_multidimensional(scene, caster, lights: dict, trees: dict | None, cam
     cdata = kc[0]
     forest = build_forest(lights, None if reference else trees)
     spp, max_cut, seed = int(spp), int(max_cut), int(seed)
+    pair_budget = min(max_cut * spp, MAX_CUT)  # the pixel's cut: max_cut pairs per gather point
     sx, sy = strata(spp)
     focus = float(focus_distance) if focus_distance is not None else \
         float(np.linalg.norm(np.asarray(camera.look_at) - np.asarray(camera.position)))
@@ -192,7 +194,7 @@ def render_multidimensional(scene, caster, lights: dict, trees: dict | None, cam
         on_counter(_render_band, (b1 - b0) * cols, 2 * CHUNK, cdata, cam, seed, spp, sx, sy, float(aperture), focus,
                    x0, x1, y0 + b0, y0 + b1, face_normal, albedo, specular, exponent, emission, f.node_b, f.node_bi,
                    f.roots, f.light_f, f.light_i, lreps, int(gather_representatives), env_pixels, env_rotation,
-                   env_scale, float(eps), max_cut,
+                   env_scale, float(eps), pair_budget,
                    float(clamp_d2), float(shadow_ray_offset(scene)), bool(visibility), bool(reference),
                    pix[b0:b1] if len(pix) else pix, rgb[b0:b1], cut[b0:b1], rays[b0:b1], lost[b0:b1])
         if progress is not None:
