@@ -19,7 +19,7 @@ from lightcuts.render.integrator import render_image
 from lightcuts.render.multidim import render_multidimensional, render_multidimensional_reference
 from lightcuts.render.multidim.gather import (GP_EXP, GP_NRM, GP_POS, GP_RD, GP_REFL, GP_RS, GP_W, GP_WIDTH)
 from lightcuts.render.multidim.gather_tree import (GK_LEFT, GK_REP, GK_RIGHT, GN_EMAX, GN_EMIN, GN_HI, GN_LO,
-                                                   GN_NAX, GN_NCOS, GN_RAX, GN_RCOS, GN_RD, GN_RS, GN_W, GN_WIDTH, GK_FIRST, GK_LAST, GK_WIDTH,
+                                                   GN_NAX, GN_NCOS, GN_RAX, GN_RCOS, GN_RD, GN_RS, GN_MIXED, GN_W, GN_WIDTH, GK_FIRST, GK_LAST, GK_WIDTH,
                                                    build_gather_tree, gather_representatives)
 from lightcuts.render.multidim.pair_bounds import pair_bound
 from lightcuts.render.multidim.product_cut import light_representatives
@@ -147,6 +147,8 @@ def test_gather_trees_are_valid(n):
         assert np.isclose(gn[k, GN_W], gp[pts, GP_W].sum())
         assert gn[k, GN_EMIN] == gp[pts, GP_EXP].min() and gn[k, GN_EMAX] == gp[pts, GP_EXP].max()
         assert gk[k, GK_REP] in pts and gk[k, GK_REP] in (gk[a, GK_REP], gk[b, GK_REP])
+        same = gp[pts][:, [GP_NRM, GP_NRM + 1, GP_NRM + 2, GP_RD, GP_RD + 1, GP_RD + 2]]
+        assert (gn[k, GN_MIXED] == 0.0) == bool(np.all(same == same[0]))
         # The range of idx that lists the node's points (the pair estimate sums their materials).
         assert sorted(idx[gk[k, GK_FIRST]:gk[k, GK_LAST]]) == sorted(pts)
         # Multiple gather representatives: column 0 the tree's own, each a point of the node that

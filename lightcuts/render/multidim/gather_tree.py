@@ -7,7 +7,8 @@ longest axis of its 6D box (position, and normal scaled by the root box's diagon
 divisive-6d light-tree builder does); points on one spot are split evenly by index. Per node
 (``GN_*`` columns of ``gn``, (2 spp, GN_WIDTH) float64): position box, box of normals and its cone,
 box of mirror directions and its cone, per-channel maximum rho_d and rho_s, exponent range, summed
-weight and the half-angle of the normal cone (the refinement rule's size); ``gk`` ((2 spp, GK_WIDTH)
+weight, the half-angle of the normal cone (the refinement rule's size) and whether its points differ
+in normal or rho_d (1.0) or not (0.0: the pair estimate may shade them all as one); ``gk`` ((2 spp, GK_WIDTH)
 int64): children, the representative gather point and, for an inner node, the range
 ``idx[first:last]`` of the build's ``idx`` that lists its points (the pair estimate sums their
 materials); chosen as lightcuts chooses light
@@ -25,7 +26,7 @@ from lightcuts.render.camera import hash_uniform
 from lightcuts.render.multidim.gather import GP_EXP, GP_NRM, GP_POS, GP_RD, GP_REFL, GP_RS, GP_W
 
 (GN_LO, GN_HI, GN_NLO, GN_NHI, GN_RLO, GN_RHI, GN_NAX, GN_NCOS, GN_RAX, GN_RCOS, GN_RD, GN_RS, GN_EMIN,
- GN_EMAX, GN_W, GN_ANG, GN_WIDTH) = 0, 3, 6, 9, 12, 15, 18, 21, 22, 25, 26, 29, 32, 33, 34, 35, 36
+ GN_EMAX, GN_W, GN_ANG, GN_MIXED, GN_WIDTH) = 0, 3, 6, 9, 12, 15, 18, 21, 22, 25, 26, 29, 32, 33, 34, 35, 36, 37
 GK_LEFT, GK_RIGHT, GK_REP, GK_FIRST, GK_LAST, GK_WIDTH = 0, 1, 2, 3, 4, 5
 #: Seed offset of the representatives' random numbers (the eye rays use the run seed itself).
 REP_SEED = 0x5EED
@@ -100,6 +101,7 @@ def _leaf(gp, gn, gk, i):
     gn[i, GN_EMAX] = gp[i, GP_EXP]
     gn[i, GN_W] = gp[i, GP_W]
     gn[i, GN_ANG] = 0.0
+    gn[i, GN_MIXED] = 0.0
     gk[i, GK_LEFT] = -1
     gk[i, GK_RIGHT] = -1
     gk[i, GK_REP] = i
@@ -108,7 +110,7 @@ def _leaf(gp, gn, gk, i):
 
 
 @njit(cache=True, error_model="numpy")
-def _union(gn, gk, k, a, b, seed, pixel):
+def _union(gp, gn, gk, k, a, b, seed, pixel):
     for c in range(3):
         for lo, hi in ((GN_LO, GN_HI), (GN_NLO, GN_NHI), (GN_RLO, GN_RHI)):
             gn[k, lo + c] = min(gn[a, lo + c], gn[b, lo + c])
@@ -126,6 +128,12 @@ def _union(gn, gk, k, a, b, seed, pixel):
     gn[k, GN_ANG] = np.arccos(max(-1.0, min(1.0, gn[k, GN_NCOS])))
     gk[k, GK_LEFT] = a
     gk[k, GK_RIGHT] = b
+    # Both children uniform and their representatives alike: so are all the points.
+    mixed = gn[a, GN_MIXED] > 0.0 or gn[b, GN_MIXED] > 0.0
+    ra, rb = gk[a, GK_REP], gk[b, GK_REP]
+    for c in range(3):
+        mixed = mixed or gp[ra, GP_NRM + c] != gp[rb, GP_NRM + c] or gp[ra, GP_RD + c] != gp[rb, GP_RD + c]
+    gn[k, GN_MIXED] = 1.0 if mixed else 0.0
     u = hash_uniform(seed + REP_SEED, pixel, k, 0)
     gk[k, GK_REP] = gk[a, GK_REP] if u * (wa + wb) < wa else gk[b, GK_REP]
 
@@ -171,7 +179,7 @@ def build_gather_tree(gp, n, gn, gk, idx, stack, seed, pixel):
                 top += 1
             gk[k, GK_LEFT + side] = child
     for k in range(2 * n - 2, n - 1, -1):
-        _union(gn, gk, k, gk[k, GK_LEFT], gk[k, GK_RIGHT], seed, pixel)
+        _union(gp, gn, gk, k, gk[k, GK_LEFT], gk[k, GK_RIGHT], seed, pixel)
     return n
 
 

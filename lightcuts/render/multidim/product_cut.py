@@ -24,7 +24,7 @@ from lightcuts.render.forest import (LF_INDIRECT, LF_NRM, LF_POS, LF_TYPE, NB_HI
                                      NK_LEFT, NK_REP, NK_RIGHT, REP_BITS)
 from lightcuts.render.heap import SLOT_MASK, entry_bound, heap_entry, heap_push, sift_down
 from lightcuts.render.multidim.gather import GP_EXP, GP_NRM, GP_POS, GP_RD, GP_REFL, GP_RS, GP_W
-from lightcuts.render.multidim.gather_tree import GK_FIRST, GK_LAST, GK_LEFT, GN_ANG, GN_HI, GN_LO, GN_W
+from lightcuts.render.multidim.gather_tree import GK_FIRST, GK_LAST, GK_LEFT, GN_ANG, GN_HI, GN_LO, GN_MIXED, GN_RS, GN_W
 from lightcuts.render.multidim.pair_bounds import pair_bound
 from lightcuts.render.reference import all_lights
 from lightcuts.render.shading import light_geometry, material_term
@@ -53,14 +53,16 @@ def light_representatives(node_f, node_k, r_count, seed, lreps):
 
 
 @njit(cache=True, error_model="numpy")
-def _mgv(gp, gk, gidx, node, g, j, light_f, clamp_d2, ray_offset, visibility, cdata, buf):
+def _mgv(gp, gn, gk, gidx, node, g, j, light_f, clamp_d2, ray_offset, visibility, cdata, buf):
     """M G V (RGB), clamp ratio and shadow rays of light j for gather node ``node`` at its
     representative point g, per unit weight of the node: a leaf is lightcuts.render.cut.light_mgv
     at its point; an inner node takes G (and the direction w) at g and the weighted mean over its
     points i of their own materials M_i(w) (normal, mirror direction, rho_d, rho_s, exponent), with
     one shadow ray from g (or, where g faces away from the light, from the first point that faces
-    it): so a pixel over several materials or orientations is shaded with their mix."""
-    if gk[node, GK_LEFT] < 0:
+    it): so a pixel over several materials or orientations is shaded with their mix. A diffuse node
+    whose points share normal and rho_d is its leaf's case (the mean is g's own term)."""
+    if gk[node, GK_LEFT] < 0 or (gn[node, GN_MIXED] == 0.0 and gn[node, GN_RS] == 0.0
+                                 and gn[node, GN_RS + 1] == 0.0 and gn[node, GN_RS + 2] == 0.0):
         return light_mgv(j, light_f, gp[g, GP_POS], gp[g, GP_POS + 1], gp[g, GP_POS + 2], gp[g, GP_NRM],
                          gp[g, GP_NRM + 1], gp[g, GP_NRM + 2], gp[g, GP_REFL], gp[g, GP_REFL + 1],
                          gp[g, GP_REFL + 2], gp[g, GP_RD], gp[g, GP_RD + 1], gp[g, GP_RD + 2], gp[g, GP_RS],
@@ -159,7 +161,7 @@ def product_cut(gp, gn, gk, gidx, greps, groot, node_b, node_bi, roots, light_f,
         k = roots[t]
         grep = greps[groot, k % g_count]
         j = lreps[k, grep % r_count]
-        m0, m1, m2, ratio, nr = _mgv(gp, gk, gidx, groot, grep, j, light_f, clamp_d2, ray_offset, visibility,
+        m0, m1, m2, ratio, nr = _mgv(gp, gn, gk, gidx, groot, grep, j, light_f, clamp_d2, ray_offset, visibility,
                                      cdata, buf)
         rays += nr
         slot_vis[n_slots] = nr == 0 or m0 > 0.0 or m1 > 0.0 or m2 > 0.0
@@ -205,13 +207,13 @@ def product_cut(gp, gn, gk, gidx, greps, groot, node_b, node_bi, roots, light_f,
                 m0, m1, m2, ratio, vis = pm0, pm1, pm2, pratio, pvis
             elif rg == pg and j == pj:
                 # The parent's shadow ray, the child's mean albedo.
-                m0, m1, m2, ratio, nr = _mgv(gp, gk, gidx, cg, rg, j, light_f, clamp_d2, ray_offset, False, cdata,
+                m0, m1, m2, ratio, nr = _mgv(gp, gn, gk, gidx, cg, rg, j, light_f, clamp_d2, ray_offset, False, cdata,
                                              buf)
                 vis = pvis
                 if not vis:
                     m0, m1, m2 = 0.0, 0.0, 0.0
             else:
-                m0, m1, m2, ratio, nr = _mgv(gp, gk, gidx, cg, rg, j, light_f, clamp_d2, ray_offset, visibility,
+                m0, m1, m2, ratio, nr = _mgv(gp, gn, gk, gidx, cg, rg, j, light_f, clamp_d2, ray_offset, visibility,
                                              cdata, buf)
                 rays += nr
                 vis = nr == 0 or m0 > 0.0 or m1 > 0.0 or m2 > 0.0
