@@ -3,7 +3,7 @@
     python tools/compile_times.py [--top 15] -- render configs/cornell.yaml --no-progress --out /tmp/r
 
 Runs the lightcuts CLI in this process on an empty ``NUMBA_CACHE_DIR`` (a fresh temporary folder,
-unless the environment sets one) with the warm-up children switched off, so that every compile
+unless the environment sets one) with the render kernel's warm-up child switched off, so that every compile
 happens here and is seen. Prints, per function, its exclusive compile seconds (its own typing,
 lowering and LLVM, not the functions it compiled on the way) and its inclusive seconds, largest
 first, and the total: CPU seconds of the compiling thread, which a busy machine inflates less than
@@ -52,7 +52,6 @@ def main() -> None:
     from lightcuts.cli import main as cli
 
     warmup.start_render_warmup = lambda *a: None  # every compile in this process, where it is seen
-    warmup.start_tree_warmup = lambda *a: None
 
     t0 = time.perf_counter()
     try:

@@ -92,35 +92,31 @@ def render_run(cfg, plan, source: str | None, reference: bool = False, progress:
     return the Render; ``source`` is the config file recorded in the report (None: none)."""
     from lightcuts.commands.warmup import finish_warmup
 
-    warmup = []  # the children compiling the tree and render kernels (None where cached)
+    warmup = []  # the child compiling the render kernel, if any
     try:
         return _run(cfg, plan, source, reference, progress, warmup)
     finally:
-        for child in warmup:
-            finish_warmup(child, timeout=0)
+        finish_warmup(warmup[0] if warmup else None, timeout=0)
 
 
 def _run(cfg, plan, source, reference: bool, progress: bool, warmup: list) -> Render:
     from lightcuts import __version__
     from lightcuts.commands.common import progress_bar, render_settings, render_timed
     from lightcuts.commands.plan import tree_meta
-    from lightcuts.commands.warmup import config_light_types, finish_warmup, start_render_warmup, start_tree_warmup
+    from lightcuts.commands.warmup import finish_warmup, start_render_warmup
     from lightcuts.report.images import relative_error
 
     t0 = time.perf_counter()
-    tree_warmup = start_tree_warmup(plan.tree, config_light_types(cfg))  # None where cached
-    warmup.append(tree_warmup)
     scene = plan.scene()
-    render_warmup = start_render_warmup(plan.integrator.trait("kernels")) \
-        if plan.caster.trait("warm_render_kernel", False) else None  # None where the render kernel is cached
-    warmup.append(render_warmup)
+    if plan.caster.trait("warm_render_kernel", False):
+        # None where the render kernel is cached
+        warmup.append(start_render_warmup(plan.integrator.trait("kernels")))
     caster = plan.make_caster(scene)
     envmap = plan.environment()
     light_sets = plan.lights(scene, caster, envmap)
     t_pre = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    finish_warmup(tree_warmup)
     trees = plan.trees(light_sets)
     t_build = time.perf_counter() - t0
     used = tree_meta(trees)
@@ -128,7 +124,7 @@ def _run(cfg, plan, source, reference: bool, progress: bool, warmup: list) -> Re
     common = render_settings(cfg, scene.camera, envmap)
     # The wait for numba (the child compiling the render kernel, then loading it) is reported on its own.
     t0 = time.perf_counter()
-    finish_warmup(render_warmup)
+    finish_warmup(warmup[0] if warmup else None)
     t_wait = time.perf_counter() - t0
     result, t_render, t_load = render_timed(cfg, scene, caster, light_sets, trees, envmap, f"{cfg.name}: lightcuts",
                                             not progress, plan.integrator)

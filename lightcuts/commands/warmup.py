@@ -1,14 +1,13 @@
-"""numba on the commands' side: a notice when kernels first compile, and kernels compiled on the side.
+"""numba on the commands' side: a notice when kernels first compile, and the render kernel compiled on the side.
 
 On an empty cache a render spends most of its time compiling kernels (``cache=True``: later runs
-load them), one kernel at a time (numba compiles under one lock per process). So the commands
-compile in child processes what they need later while this process traces the lights: the tree
-builder's kernels (:func:`start_tree_warmup`, a tree over a few thousand random lights of each type)
-and the render kernel (:func:`start_render_warmup`, one pixel, the ``_render_band`` of the
-integrator's ``kernels`` module); :func:`finish_warmup` waits for a child before its kernels are
-first called, which then load from the cache. Correct however a child
-ends: the cache is a cache (numba writes each entry atomically), so a child that failed, was killed
-or found no writable cache only leaves this process to compile those kernels itself.
+load them), one kernel at a time (numba compiles under one lock per process). The render kernel
+(the ``_render_band`` of the integrator's ``kernels`` module) is the largest of them and is needed
+last, so :func:`start_render_warmup` compiles it in a child process (one core, one pixel) while
+this process traces lights and builds trees (the other), and :func:`finish_warmup` waits for the
+child before the first render, which then loads the kernel from the cache. Correct however the
+child ends: the cache is a cache (numba writes each entry atomically), so a child that failed, was
+killed or found no writable cache only leaves this process to compile the kernel itself.
 """
 
 from __future__ import annotations
@@ -27,26 +26,6 @@ except Exception:
     pass
 import importlib, sys
 importlib.import_module(sys.argv[1]).warm_kernels()
-"""
-
-#: The tree child: killed with its parent as :data:`_CHILD` is, then builds a tree over random lights of each given type
-#: with the builder, metric and c given as JSON in argv[1] (the kernels' types are those of every
-#: build; 4,096 lights take the builders' general paths, not their few-light shortcuts).
-_CHILD_TREES = _CHILD.split("import importlib")[0] + """
-import json, sys
-import numpy as np
-from lightcuts.lights.lightset import LightSet
-from lightcuts.trees.build import build_tree
-from lightcuts.trees.spec import tree_spec
-a = json.loads(sys.argv[1])
-spec = tree_spec(a["builder"], a["metric"], a["c"])
-rng = np.random.default_rng(0)
-for typ in a["types"]:
-    normal = rng.normal(size=(4096, 3))
-    normal /= np.linalg.norm(normal, axis=1)[:, None]
-    position = normal.copy() if typ == "directional" else rng.random((4096, 3))
-    build_tree(LightSet(position, normal if typ == "oriented" else np.zeros_like(normal),
-                        rng.random((4096, 3)) + 0.1, typ), spec, seed=0)
 """
 
 #: Longest wait for the child before the render compiles the kernel itself, seconds.
@@ -90,17 +69,6 @@ def is_cached(dispatcher) -> bool:
         return True
 
 
-def _start_child(code: str, *args: str) -> subprocess.Popen | None:
-    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-    env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join([root] + [p for p in [env.get("PYTHONPATH")] if p])
-    try:
-        return subprocess.Popen([sys.executable, "-c", code, *args], env=env, stdin=subprocess.DEVNULL,
-                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    except OSError:
-        return None
-
-
 def start_render_warmup(kernels: str | None = "lightcuts.render.integrator") -> subprocess.Popen | None:
     """If the render kernel is not in the cache, start a child process that compiles it (and writes
     it to the cache) by rendering one pixel of a small scene; None if it is cached, ``kernels`` is
@@ -113,31 +81,18 @@ def start_render_warmup(kernels: str | None = "lightcuts.render.integrator") -> 
 
     if kernels is None or is_cached(importlib.import_module(kernels)._render_band):
         return None
-    return _start_child(_CHILD, kernels)
-
-
-def start_tree_warmup(spec, light_types) -> subprocess.Popen | None:
-    """If the tree kernels are not in the cache, start a child process that compiles those of
-    ``spec`` (a TreeSpec) by building trees over random lights of each of ``light_types``; None if
-    they are cached, the metric is not a registered one (the child could not name it), or the child
-    cannot start. The fill kernel every builder calls stands for the builder's own kernels in the
-    cache check (a run with a builder not used before compiles that builder's kernels itself)."""
-    import json
-
-    from lightcuts.trees.fill import _fill_ranges
-    from lightcuts.trees.registry import METRICS
-
-    if is_cached(_fill_ranges) or not light_types:
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([root] + [p for p in [env.get("PYTHONPATH")] if p])
+    try:
+        return subprocess.Popen([sys.executable, "-c", _CHILD, kernels], env=env, stdin=subprocess.DEVNULL,
+                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    except OSError:
         return None
-    metric = spec.metric.name if spec.metric is not None else None
-    if metric is not None and (metric not in METRICS or METRICS.get(metric) is not spec.metric):
-        return None
-    return _start_child(_CHILD_TREES, json.dumps({"builder": spec.name, "metric": metric, "c": spec.c,
-                                                  "types": sorted(light_types)}))
 
 
 def finish_warmup(proc: subprocess.Popen | None, timeout: float = WARMUP_TIMEOUT) -> None:
-    """Wait for a child of :func:`start_render_warmup` or :func:`start_tree_warmup` (None: nothing to do); after ``timeout``
+    """Wait for the child of :func:`start_render_warmup` (None: nothing to do); after ``timeout``
     seconds it is killed, and the caller compiles what it needs itself."""
     if proc is None:
         return
@@ -149,14 +104,3 @@ def finish_warmup(proc: subprocess.Popen | None, timeout: float = WARMUP_TIMEOUT
         if proc.poll() is None:
             proc.kill()
             proc.wait()
-
-
-def config_light_types(cfg) -> list[str]:
-    """The light types a run config asks for (as lightcuts.lights.generate makes them)."""
-    lc = cfg.lights
-    types = []
-    if lc.direct.count > 0 or lc.indirect.count > 0:
-        types.append("oriented")
-    if lc.sun is not None or (lc.environment is not None and lc.environment.count > 0):
-        types.append("directional")
-    return types
