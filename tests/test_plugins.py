@@ -124,9 +124,18 @@ def test_scratch_forgets_registrations():
 
 
 def test_registry_loads_builtins_on_first_listing():
-    reg = Registry("builder", builtins=("lightcuts.trees.divisive",), params=("metric", "c"))
-    # divisive registers into BUILDERS, not this registry: it only shows the module was imported
-    assert reg.names() == [] and "lightcuts.trees.divisive" in sys.modules
+    # In a fresh interpreter, so that no other test has imported the module already: a registry
+    # imports its built-in modules on the first listing, not before. (divisive registers into
+    # BUILDERS, not this registry: the listing stays empty, the import is what shows.)
+    code = ("import sys\n"
+            "from lightcuts.registry import Registry\n"
+            "reg = Registry('builder', builtins=('lightcuts.trees.divisive',), params=('metric', 'c'))\n"
+            "before = 'lightcuts.trees.divisive' in sys.modules\n"
+            "names = reg.names()\n"
+            "print(before, names, 'lightcuts.trees.divisive' in sys.modules)\n")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert r.stdout.split() == ["False", "[]", "True"]
 
 
 def test_declared_parameters_are_checked():
