@@ -19,7 +19,8 @@ from lightcuts.render.integrator import render_image
 from lightcuts.render.multidim import render_multidimensional, render_multidimensional_reference
 from lightcuts.render.multidim.gather import (GP_EXP, GP_NRM, GP_POS, GP_RD, GP_REFL, GP_RS, GP_W, GP_WIDTH)
 from lightcuts.render.multidim.gather_tree import (GK_LEFT, GK_REP, GK_RIGHT, GN_EMAX, GN_EMIN, GN_HI, GN_LO,
-                                                   GN_NAX, GN_NCOS, GN_RAX, GN_RCOS, GN_RD, GN_RS, GN_MIXED, GN_W, GN_WIDTH, GK_FIRST, GK_LAST, GK_WIDTH,
+                                                   GN_NAX, GN_NCOS, GN_RAX, GN_RCOS, GN_RD, GN_RS, GN_MIXED, GN_W,
+                                                   GN_WIDTH, GK_FIRST, GK_LAST, GK_WIDTH,
                                                    build_gather_tree, gather_representatives)
 from lightcuts.render.multidim.pair_bounds import pair_bound
 from lightcuts.render.multidim.product_cut import light_representatives
@@ -305,7 +306,8 @@ def test_plan_refuses_an_aperture_for_a_pinhole_integrator(tmp_path):
     (tmp_path / "run.yaml").write_text("scene: {builtin: cornell}\ncamera: {aperture: 0.1}\n"
                                        "render: {integrator: {type: multidimensional, representatives: 2}}\n")
     plan = plan_run(load_config(tmp_path / "run.yaml"), render=True)
-    assert plan.record()["integrator"] == {"type": "multidimensional", "representatives": 2, "gather_representatives": 1}
+    assert plan.record()["integrator"] == {"type": "multidimensional", "representatives": 2,
+                                           "gather_representatives": 1}
 
 
 def test_warm_kernels_compiles_the_specialisation_renders_use(cornell):

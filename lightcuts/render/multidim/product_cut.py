@@ -24,7 +24,8 @@ from lightcuts.render.forest import (LF_INDIRECT, LF_NRM, LF_POS, LF_TYPE, NB_HI
                                      NK_LEFT, NK_REP, NK_RIGHT, REP_BITS)
 from lightcuts.render.heap import SLOT_MASK, entry_bound, heap_entry, heap_push, sift_down
 from lightcuts.render.multidim.gather import GP_EXP, GP_NRM, GP_POS, GP_RD, GP_REFL, GP_RS, GP_W
-from lightcuts.render.multidim.gather_tree import GK_FIRST, GK_LAST, GK_LEFT, GN_ANG, GN_HI, GN_LO, GN_MIXED, GN_RS, GN_W
+from lightcuts.render.multidim.gather_tree import (GK_FIRST, GK_LAST, GK_LEFT, GN_ANG, GN_HI, GN_LO, GN_MIXED, GN_RS,
+                                                   GN_W)
 from lightcuts.render.multidim.pair_bounds import pair_bound
 from lightcuts.render.reference import all_lights
 from lightcuts.render.shading import light_geometry, material_term
@@ -136,8 +137,8 @@ def refine_gather(gn, gk, g, node_b, node_bi, k):
 
 
 @njit(cache=True, error_model="numpy")
-def product_cut(gp, gn, gk, gidx, greps, groot, node_b, node_bi, roots, light_f, lreps, eps, max_cut, clamp_d2, ray_offset,
-                visibility, cdata, buf, heap, slot_g, slot_l, slot_rep, slot_mgv, slot_ratio, slot_vis):
+def product_cut(gp, gn, gk, gidx, greps, groot, node_b, node_bi, roots, light_f, lreps, eps, max_cut, clamp_d2,
+                ray_offset, visibility, cdata, buf, heap, slot_g, slot_l, slot_rep, slot_mgv, slot_ratio, slot_vis):
     """Reflected radiance of the pixel whose gather tree is (gp, gn, gk, groot), gidx the points in
     the tree's order (lightcuts.render.multidim.gather_tree), greps its representatives (R_G columns).
 
@@ -206,9 +207,9 @@ def product_cut(gp, gn, gk, gidx, greps, groot, node_b, node_bi, roots, light_f,
             if rg == pg and j == pj and not split_g:
                 m0, m1, m2, ratio, vis = pm0, pm1, pm2, pratio, pvis
             elif rg == pg and j == pj:
-                # The parent's shadow ray, the child's mean albedo.
-                m0, m1, m2, ratio, nr = _mgv(gp, gn, gk, gidx, cg, rg, j, light_f, clamp_d2, ray_offset, False, cdata,
-                                             buf)
+                # The parent's shadow ray, the child's own points' materials.
+                m0, m1, m2, ratio, nr = _mgv(gp, gn, gk, gidx, cg, rg, j, light_f, clamp_d2, ray_offset, False,
+                                             cdata, buf)
                 vis = pvis
                 if not vis:
                     m0, m1, m2 = 0.0, 0.0, 0.0

@@ -144,14 +144,15 @@ def render_multidimensional(scene, caster, lights: dict, trees: dict | None, cam
     """Render with multidimensional lightcuts: one product cut per pixel over its ``spp`` gather points.
 
     Arguments as lightcuts.render.integrator.render_image (``cut_size`` of the result: pairs in the
-    pixel's cut; ``max_cut``: pairs per gather point, so the pixel's cut holds at most ``max_cut * spp``
-    pairs, up to MAX_CUT: a config means the same effort per eye ray for both integrators), plus aperture : lens radius, world units
-    (0: pinhole, exactly render_image's eye rays); focus_distance : distance of the plane in focus
+    pixel's cut; ``max_cut``: pairs per gather point, so the pixel's cut holds at most ``max_cut *
+    spp`` pairs, up to MAX_CUT: a config means the same effort per eye ray for both integrators),
+    plus aperture : lens radius, world units (0: pinhole, exactly render_image's eye rays); focus_distance : distance of the plane in focus
     along the view axis (None: |look_at - position|); representatives : light representatives per
     light node (1: the tree's own only); gather_representatives : representative gather points per
     gather node, the pair (G, L) using the one of column L mod R (1: the gather tree's own only;
-    more decorrelates the pairs' errors at the cost of shadow rays). ``reference=True`` (``trees`` may be None) sums every gather
-    point with every light instead of cutting: the brute-force reference of the same gather points.
+    more decorrelates the pairs' errors at the cost of shadow rays). ``reference=True`` (``trees``
+    may be None) sums every gather point with every light instead of cutting: the brute-force
+    reference of the same gather points.
     """
     t_start = time.perf_counter()
     camera = camera if camera is not None else scene.camera
