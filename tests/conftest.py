@@ -91,3 +91,31 @@ def cli_recording_work(argv, cwd, setup=""):
     assert r.stdout.strip(), r.stderr
     rc, calls = json.loads(r.stdout.strip().splitlines()[-1])
     return rc, calls, r.stderr
+
+
+#: Names whose use in a test's body starts a process (the CLI or a fresh interpreter): such a test
+#: is marked ``slow`` (``pytest -m "not slow"`` is the quick loop).
+_SPAWNING = {"subprocess", "run_cli", "_cli", "cli_recording_work", "_loaded_after_import"}
+#: Tests slow for their own work (large scenes, many builds), by name.
+_SLOW_BY_NAME = {"test_coplanar_piles_terminate_for_every_structure",
+                 "test_resume_skips_finished_rows_and_recomputes_changed_ones",
+                 "test_objects_referenced_by_exactly_the_voxels_their_box_overlaps"}
+
+
+def _names(code) -> set[str]:
+    """The global and attribute names a code object uses, with those of its nested code (lambdas,
+    comprehensions)."""
+    out = set(code.co_names)
+    for c in code.co_consts:
+        if hasattr(c, "co_names"):
+            out |= _names(c)
+    return out
+
+
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        fn = getattr(item, "function", None)
+        if fn is None:
+            continue
+        if fn.__name__ in _SLOW_BY_NAME or _SPAWNING & _names(fn.__code__):
+            item.add_marker(pytest.mark.slow)
