@@ -266,7 +266,7 @@ def _apply_override(data: dict, assignment: str, source: str) -> None:
         value = yaml.safe_load(text)
     except yaml.YAMLError as exc:
         what = " ".join(str(getattr(exc, "problem", None) or exc).split())
-        raise LightcutsError(f"--set {assignment}: value is not valid YAML ({what}); quote it to give a string")
+        raise LightcutsError(f"--set {assignment!r}: value is not valid YAML ({what}); quote it to give a string")
     if not key.strip() or any(not p for p in parts):
         raise LightcutsError(f"--set {assignment!r}: expected a dotted key, e.g. render.eps=0.01")
     set_key(data, key, value, "--set ")

@@ -28,9 +28,8 @@ the product of a gather tree over the pixel's eye-ray hits and the light trees (
 from __future__ import annotations
 
 from lightcuts.registry import Param, Registry
+from lightcuts.render import DEFAULT_REPRESENTATIVES
 
-#: Light representatives per light node in a multidimensional cut (1: the tree's own only).
-DEFAULT_REPRESENTATIVES = 4
 
 INTEGRATORS: Registry = Registry("integrator", group="lightcuts.integrators",
                                  builtins=("lightcuts.render.integrators",))

@@ -23,10 +23,9 @@ from lightcuts.accel.kernel_api import new_scratch
 from lightcuts.errors import LightcutsError
 from lightcuts.lights.lightset import LUMINANCE
 from lightcuts.parallel import next_task, on_counter
-from lightcuts.render import MAX_CUT
+from lightcuts.render import DEFAULT_REPRESENTATIVES, MAX_CUT
 from lightcuts.render.camera import CAM_WIDTH, camera_params, check_crop, strata
 from lightcuts.render.forest import build_forest
-from lightcuts.render.integrators import DEFAULT_REPRESENTATIVES
 from lightcuts.render.integrator import BAND_PIXELS, CHUNK, RenderResult, _kernel_array, shadow_ray_offset
 from lightcuts.render.multidim.gather import GP_WIDTH, pixel_gather
 from lightcuts.render.multidim.gather_tree import GK_WIDTH, GN_WIDTH, build_gather_tree, gather_representatives
