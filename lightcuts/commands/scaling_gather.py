@@ -8,8 +8,8 @@ once; for every count G the image is rendered with both integrators: ``lightcuts
 (the config's ``render.integrator`` parameters if it is multidimensional, else the defaults), each
 after an untimed one-pixel render that loads its kernel (:func:`lightcuts.commands.common.render_timed`).
 Both see the same eye rays, so their images differ only by their cuts' errors. Other settings
-(eps, max_cut, clamping, crop) are the config's; ``render.max_cut`` bounds a lightcut per eye ray
-but a multidimensional cut per pixel.
+(eps, max_cut, clamping, crop) are the config's; ``render.max_cut`` is the budget per eye ray of
+both (a multidimensional cut over G gather points holds up to max_cut x G pairs).
 
 Per (G, integrator) a row of ``gather_scaling.csv`` (:data:`lightcuts.report.scaling.GATHER_CSV_FIELDS`):
 ``cut_per_pixel`` is what a pixel evaluates, light nodes over its G eye rays for ``lightcuts`` (its
