@@ -69,19 +69,24 @@ RENDER_CSV_FIELDS = ("n_requested", "n_lights", "builder", "cut_mean", "cut_max"
                      "render_s")
 
 
+def grouped_series(rows: list[dict], group: str, x: str, y: str, symbol: str) -> list[tuple]:
+    """One log-log series per value of ``rows[i][group]`` (in first-seen order): ``(label, xs, ys)``
+    with the fitted exponent in the label, e.g. ``agglomerative (N^0.02)``."""
+    series = []
+    for name in dict.fromkeys(r[group] for r in rows):
+        xs = np.array([r[x] for r in rows if r[group] == name], float)
+        ys = np.array([r[y] for r in rows if r[group] == name], float)
+        series.append((f"{name} ({symbol}^{fitted_exponent(xs, ys):.2f})", xs, ys))
+    return series
+
+
 def plot_render_scaling(path: Path, rows: list[dict], title: str) -> Path:
     """Log-log average cut size and render time against N per builder (``lightcuts scaling
     --render``), each builder's fitted exponent in the legend; written atomically."""
     from lightcuts.report.plots import loglog_panels
 
-    panels = []
-    for key, label in (("cut_mean", "average cut size (nodes per eye ray)"), ("render_s", "render time (s)")):
-        series = []
-        for b in dict.fromkeys(r["builder"] for r in rows):
-            n = np.array([r["n_lights"] for r in rows if r["builder"] == b], float)
-            y = np.array([r[key] for r in rows if r["builder"] == b], float)
-            series.append((f"{b} (N^{fitted_exponent(n, y):.2f})", n, y))
-        panels.append(("number of lights N", label, series))
+    panels = [("number of lights N", label, grouped_series(rows, "builder", "n_lights", key, "N"))
+              for key, label in (("cut_mean", "average cut size (nodes per eye ray)"), ("render_s", "render time (s)"))]
     return loglog_panels(path, panels, title, (11.0, 4.4))
 
 
@@ -111,14 +116,9 @@ def plot_gather_scaling(path: Path, rows: list[dict], title: str) -> Path:
     integrator with its fitted exponent in the legend; written atomically."""
     from lightcuts.report.plots import loglog_panels
 
-    panels = []
-    for key, label in (("image_s", "image time (s)"), ("cut_per_pixel", "cut per pixel (light nodes or pairs)")):
-        series = []
-        for name in dict.fromkeys(r["integrator"] for r in rows):
-            g = np.array([r["gather"] for r in rows if r["integrator"] == name], float)
-            y = np.array([r[key] for r in rows if r["integrator"] == name], float)
-            series.append((f"{name} (G^{fitted_exponent(g, y):.2f})", g, y))
-        panels.append(("gather points per pixel G", label, series))
+    keys = (("image_s", "image time (s)"), ("cut_per_pixel", "cut per pixel (light nodes or pairs)"))
+    panels = [("gather points per pixel G", label, grouped_series(rows, "integrator", "gather", key, "G"))
+              for key, label in keys]
     return loglog_panels(path, panels, title, (11.0, 4.4))
 
 
