@@ -11,6 +11,7 @@ MAX_SEED : the largest seed, since the kernels take it as an int64
 MAX_PIXELS : the largest image (and environment map), width x height: 2**25 pixels, 33.5 million
     (e.g. 8192 x 4096); the render's buffers take about 60 bytes a pixel
 MAX_EXPOSURE : the largest |render.exposure| in stops, so that 2**exposure is a normal float64
+MAX_PASSES : the most ``render.passes`` (each pass makes its lights and trees again)
 """
 
 SLOT_BITS = 20
@@ -20,3 +21,4 @@ MAX_INTENSITY = 1e100
 MAX_SEED = 2**63 - 1
 MAX_PIXELS = 1 << 25
 MAX_EXPOSURE = 1000.0
+MAX_PASSES = 4096

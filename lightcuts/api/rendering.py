@@ -87,10 +87,25 @@ class Render:
         return f"<Render {self.summary()}>"
 
 
+def check_reference(cfg) -> None:
+    """LightcutsError unless the all-lights reference measures this run: it is the image of one
+    VPL set without the compensation, so passes > 1 and compensation have none (their reference is
+    a path tracer's: ``lightcuts reference``)."""
+    from lightcuts.errors import LightcutsError
+
+    if cfg.render.passes > 1 or cfg.render.compensation:
+        raise LightcutsError("--reference: the all-lights reference is one VPL set's image without compensation; "
+                             "with render.passes > 1 or render.compensation compare against a path tracer "
+                             "(lightcuts reference CONFIG)")
+
+
 def render_run(cfg, plan, source: str | None, reference: bool = False, progress: bool = True) -> Render:
     """Run the plan (:func:`lightcuts.commands.plan.plan_run` of ``cfg`` with ``render=True``) and
     return the Render; ``source`` is the config file recorded in the report (None: none)."""
     from lightcuts.commands.warmup import finish_warmup
+
+    if reference:
+        check_reference(cfg)
 
     warmup = []  # the child compiling the render kernel, if any
     try:
@@ -101,7 +116,8 @@ def render_run(cfg, plan, source: str | None, reference: bool = False, progress:
 
 def _run(cfg, plan, source, reference: bool, progress: bool, warmup: list) -> Render:
     from lightcuts import __version__
-    from lightcuts.commands.common import progress_bar, render_settings, render_timed
+    from lightcuts.api.passes import render_passes
+    from lightcuts.commands.common import progress_bar, render_settings
     from lightcuts.commands.plan import tree_meta
     from lightcuts.commands.warmup import finish_warmup, start_render_warmup
     from lightcuts.report.images import relative_error
@@ -123,12 +139,18 @@ def _run(cfg, plan, source, reference: bool, progress: bool, warmup: list) -> Re
 
     common = render_settings(cfg, scene.camera, envmap)
     # The wait for numba (the child compiling the render kernel, then loading it) is reported on its own.
-    t0 = time.perf_counter()
-    finish_warmup(warmup[0] if warmup else None)
-    t_wait = time.perf_counter() - t0
-    result, t_render, t_load = render_timed(cfg, scene, caster, light_sets, trees, envmap, f"{cfg.name}: lightcuts",
-                                            not progress, plan.integrator)
-    t_jit = t_wait + t_load
+    wait = []
+
+    def finish():
+        t0 = time.perf_counter()
+        finish_warmup(warmup[0] if warmup else None)
+        wait.append(time.perf_counter() - t0)
+
+    passes = render_passes(cfg, plan, scene, caster, envmap, desc=f"{cfg.name}: lightcuts", progress=progress,
+                           lights=light_sets, trees=trees, before_render=finish)
+    result = passes.result0
+    t_render = passes.render_seconds
+    t_jit = wait[0] + passes.load_seconds
     rows = result.image.shape[0]
 
     n_pixels = result.image.shape[0] * result.image.shape[1]
@@ -151,18 +173,21 @@ def _run(cfg, plan, source, reference: bool, progress: bool, warmup: list) -> Re
         "crop": cfg.render.crop,
         "spp": cfg.render.spp,
         "clamping": {"enabled": cfg.render.clamp.enabled, "min_distance": cfg.render.clamp.min_distance,
-                     "clamped_energy_fraction": float(result.clamped_fraction)},
+                     "clamped_energy_fraction": float(passes.clamped_fraction)},
+        "compensation": cfg.render.compensation,
+        "representatives": cfg.render.representatives,
+        "passes": passes.records,
         "preprocess_seconds": t_pre,
         "jit_seconds": t_jit,
         "build_seconds": t_build,
         "render_seconds": t_render,
         "cut_size_unit": plan.integrator.trait("cut_unit"),
-        "cut_size_mean": float(result.cut_size.mean()),
-        "cut_size_max": float(result.cut_size.max()),
-        "eye_rays": int(result.eye_rays),
-        "shadow_rays": int(result.shadow_rays),
-        "shadow_rays_per_pixel": float(result.shadow_rays) / n_pixels,
-        "rays_per_second": float(result.eye_rays + result.shadow_rays) / max(t_render, 1e-9),
+        "cut_size_mean": float(passes.cut_size.mean()),
+        "cut_size_max": float(passes.cut_size.max()),
+        "eye_rays": int(passes.eye_rays),
+        "shadow_rays": int(passes.shadow_rays),
+        "shadow_rays_per_pixel": float(passes.shadow_rays) / n_pixels,
+        "rays_per_second": float(passes.eye_rays + passes.shadow_rays) / max(t_render, 1e-9),
         "threads": _threads(),
         "machine": platform.machine(),
     }
@@ -175,8 +200,8 @@ def _run(cfg, plan, source, reference: bool, progress: bool, warmup: list) -> Re
         ref_image = ref.image
         report["reference"] = {"render_seconds": t_ref, "shadow_rays": int(ref.shadow_rays),
                                "speedup": t_ref / max(t_render, 1e-9),
-                               "relative_error": relative_error(result.image, ref.image)}
-    return Render(cfg, result.image, result.cut_size, report, ref_image)
+                               "relative_error": relative_error(passes.image, ref.image)}
+    return Render(cfg, passes.image, passes.cut_size, report, ref_image)
 
 
 def _threads() -> int:

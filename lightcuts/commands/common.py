@@ -33,11 +33,13 @@ def render_settings(cfg, camera, envmap=None) -> dict:
 
 
 def render_timed(cfg, scene, caster, lights: dict, trees: dict, envmap=None, desc: str = "lightcuts",
-                 no_progress: bool = False, integrator=None):
+                 no_progress: bool = False, integrator=None, load: bool = True):
     """The config's image: ``(result, seconds, load_seconds)``. The render kernel is loaded (or
     compiled) on one pixel first, untimed in ``seconds`` (its time is ``load_seconds``), so that
     ``seconds`` measures rendering; a progress bar ``desc`` counts rows. ``integrator``: the plan's
-    resolved ``render.integrator`` (else resolved here)."""
+    resolved ``render.integrator`` (else resolved here); load False skips the one-pixel render (the
+    kernel is loaded already; load_seconds is then 0). The image uses ``cfg.seed`` and, for an
+    integrator with the ``converging`` trait, ``render.compensation`` and ``render.representatives``."""
     import time
 
     from lightcuts.render.integrators import INTEGRATORS
@@ -46,13 +48,16 @@ def render_timed(cfg, scene, caster, lights: dict, trees: dict, envmap=None, des
         integrator = INTEGRATORS.resolve(cfg.render.integrator, "render.integrator")
     render_image = integrator.obj
     settings = render_settings(cfg, scene.camera, envmap)
+    if integrator.trait("converging", False):
+        settings.update(compensation=cfg.render.compensation, representatives=cfg.render.representatives)
     crop = cfg.render.crop
     x0, y0 = (0, 0) if crop is None else crop[:2]
     rows = scene.camera.height if crop is None else crop[3] - crop[1]
     t0 = time.perf_counter()
-    render_image(scene, caster, lights, trees, eps=cfg.render.eps, max_cut=cfg.render.max_cut,
-                 **{**settings, "crop": (x0, y0, x0 + 1, y0 + 1)}, **integrator.params)
-    load = time.perf_counter() - t0
+    if load:
+        render_image(scene, caster, lights, trees, eps=cfg.render.eps, max_cut=cfg.render.max_cut,
+                     **{**settings, "crop": (x0, y0, x0 + 1, y0 + 1)}, **integrator.params)
+    load = time.perf_counter() - t0 if load else 0.0
     with progress_bar(rows, desc, no_progress) as bar:
         t0 = time.perf_counter()
         result = render_image(scene, caster, lights, trees, eps=cfg.render.eps, max_cut=cfg.render.max_cut,

@@ -54,21 +54,24 @@ class Plan:
 
         return load_environment(self.cfg)
 
-    def lights(self, scene, caster=None, envmap=None) -> dict:
-        """Light sets by type, seeded by ``cfg.seed``; a caster is built if indirect lights need one."""
+    def lights(self, scene, caster=None, envmap=None, seed: int | None = None) -> dict:
+        """Light sets by type, seeded by ``seed`` (default ``cfg.seed``); a caster is built if
+        indirect lights need one."""
         from lightcuts.lights.generate import lights_from_config
 
         if caster is None and self.cfg.lights.indirect.count > 0:
             caster = self.make_caster(scene)
         if envmap is None:
             envmap = self.environment()
-        return lights_from_config(self.cfg, scene, caster, envmap)
+        cfg = self.cfg if seed is None else self.cfg.model_copy(update={"seed": int(seed)})
+        return lights_from_config(cfg, scene, caster, envmap)
 
-    def trees(self, light_sets: dict) -> dict:
-        """One LightTree per light type, built by the plan's builder."""
+    def trees(self, light_sets: dict, seed: int | None = None) -> dict:
+        """One LightTree per light type, built by the plan's builder (seed default ``cfg.seed``)."""
         from lightcuts.trees.build import build_tree
 
-        return {typ: build_tree(ls, self.tree, seed=self.cfg.seed) for typ, ls in light_sets.items()}
+        seed = self.cfg.seed if seed is None else int(seed)
+        return {typ: build_tree(ls, self.tree, seed=seed) for typ, ls in light_sets.items()}
 
 
 def plan_run(cfg: RunConfig, *, render: bool = False, tree: TreeSpec | None = None) -> Plan:
@@ -107,6 +110,12 @@ def plan_run(cfg: RunConfig, *, render: bool = False, tree: TreeSpec | None = No
         lens = [e.name for e in INTEGRATORS.entries() if e.trait("lens", False)]
         raise LightcutsError(f"camera.aperture: integrator {integrator.name!r} renders a pinhole camera only; "
                              f"use render.integrator: {' or '.join(lens)} for depth of field")
+    r = cfg.render
+    for key, asked in (("compensation", r.compensation), ("representatives", r.representatives == "stochastic")):
+        if asked and not integrator.trait("converging", False):
+            converging = [e.name for e in INTEGRATORS.entries() if e.trait("converging", False)]
+            raise LightcutsError(f"render.{key}: integrator {integrator.name!r} does not support it; "
+                                 f"use render.integrator: {' or '.join(converging)}")
     return Plan(cfg, tree, caster, scene_type, integrator)
 
 

@@ -34,12 +34,14 @@ def run(args) -> int:
 
 def run_render(args) -> dict:
     """Run a render as the CLI does; returns the report dict (also written to report.json)."""
-    from lightcuts.api.rendering import render_run
+    from lightcuts.api.rendering import check_reference, render_run
     from lightcuts.commands.plan import plan_run
     from lightcuts.io import check_output_dir
 
     cfg = load_config(args.config, args.overrides)  # every config error surfaces here, before any work
     plan = plan_run(cfg, render=True)
+    if args.reference:
+        check_reference(cfg)
     out_dir = check_output_dir(Path(args.out) if args.out else Path("renders") / cfg.name,
                                "--out" if args.out else "name")
     result = render_run(cfg, plan, str(Path(args.config)), args.reference, not args.no_progress)

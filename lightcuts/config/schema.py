@@ -14,7 +14,7 @@ import yaml
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from lightcuts.errors import LightcutsError
-from lightcuts.limits import MAX_COORD, MAX_CUT, MAX_EXPOSURE, MAX_PIXELS, MAX_SEED
+from lightcuts.limits import MAX_COORD, MAX_CUT, MAX_EXPOSURE, MAX_PASSES, MAX_PIXELS, MAX_SEED
 
 #: Run defaults, here alone: commands and stage APIs read them from this module.
 DEFAULT_BUILDER = "agglomerative"
@@ -215,6 +215,14 @@ class RenderConfig(Strict):
     integrator: PluginSpec = DEFAULT_INTEGRATOR
     # Render only the window [x0, y0, x1, y1) of the image (pixels), e.g. for reference checks.
     crop: Annotated[list[int], Field(min_length=4, max_length=4)] | None = None
+    # The light that VPLs lose (docs/math.md, "Compensation"): the part clamping removes and the part
+    # glossy surfaces reflect, carried by a continuation of the eye path (integrator lightcuts).
+    compensation: bool = False
+    # A cut node's representative: the tree's (fixed, Lightcuts 2005) or one drawn per shading point
+    # in proportion to intensity (stochastic: unbiased for the VPLs; integrator lightcuts).
+    representatives: Literal["fixed", "stochastic"] = "fixed"
+    # Passes averaged, each with its own lights, trees and eye-ray samples (seeds from ``seed``).
+    passes: Annotated[int, Field(ge=1, le=MAX_PASSES)] = 1
 
 
 class RunConfig(Strict):

@@ -68,7 +68,7 @@ def lights_from_config(cfg, scene, caster=None, envmap: EnvironmentMap | None = 
         if caster is None:
             raise TypeError("lights_from_config: indirect lights need a ray caster")
         ind = indirect_lights(scene, caster, lc.indirect.count, sub_seed(cfg.seed, "indirect"),
-                              lc.indirect.max_bounces, lc.indirect.rr_start)
+                              lc.indirect.max_bounces, lc.indirect.rr_start, glossy=cfg.render.compensation)
         oriented.append(ind)
         counts["count_indirect"] = len(ind)
         counts["indirect_paths"] = int(ind.meta.get("indirect_paths", 0))

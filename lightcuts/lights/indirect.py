@@ -17,10 +17,15 @@ A path also ends when it escapes or hits the back of an emitter: emitters are on
 back absorbs (it emits nothing and reflects nothing; the renderer must shade it black too). The
 front of an emitter reflects with its albedo like any surface.
 
-Glossy surfaces: only their diffuse part ``rho_d`` scatters particles and makes VPLs, which are
-diffuse emitters. The specular lobe's share of the energy is dropped from the particle paths (the
-standard limitation of instant radiosity; Lightcuts 2005 also uses diffuse VPLs). The final gather
-from VPLs to the camera still uses the full BRDF.
+Glossy surfaces: VPLs are diffuse emitters, made from the diffuse part ``rho_d`` only. By default
+only that part scatters particles too, and the specular lobe's share of the energy is dropped (the
+standard limitation of instant radiosity; Lightcuts 2005 also uses diffuse VPLs). With ``glossy``
+(``render.compensation``) a path goes on through either lobe: the Phong lobe with probability
+``max(rho_s) / (max(rho_d) + max(rho_s))``, its direction sampled about the mirror direction
+(lightcuts.sampling), and Russian roulette uses ``max(rho_d) + max(rho_s)``; a VPL then carries all
+light arriving at its point, and the light that glossy surfaces reflect towards a receiver is left
+to the eye-path continuation (docs/math.md, "Compensation"). The final gather from VPLs to the
+camera uses the full BRDF.
 
 Expectation: the VPLs of bounce k carry, in total, the power that leaves surfaces after exactly k
 diffuse reflections, so rendering them is an unbiased estimate of all (diffuse-path) indirect light
@@ -57,6 +62,7 @@ from lightcuts.accel.kernel_api import intersect, new_scratch
 from lightcuts.hashing import mix64 as _mix64
 from lightcuts.lights.lightset import LUMINANCE, LightSet
 from lightcuts.parallel import next_task, on_counter
+from lightcuts.sampling import cosine_direction, phong_direction, reflect
 
 # Stream tags for the counter-based hash: the pilot's paths are independent of the run's.
 _STREAM_RUN = 0x52554E
@@ -80,20 +86,6 @@ def _uniform(key, path, bounce, dim):
 
 
 @njit(cache=True)
-def _cosine_direction(nx, ny, nz, u1, u2):
-    """Cosine-distributed unit direction about the unit normal n (frame of Duff et al. 2017)."""
-    sign = 1.0 if nz >= 0.0 else -1.0
-    a = -1.0 / (sign + nz)
-    b = nx * ny * a
-    tx, ty, tz = 1.0 + sign * nx * nx * a, sign * b, -sign * nx
-    bx, by, bz = b, sign + ny * ny * a, -ny
-    r = math.sqrt(u1)
-    phi = 2.0 * math.pi * u2
-    lx, ly, lz = r * math.cos(phi), r * math.sin(phi), math.sqrt(max(0.0, 1.0 - u1))
-    return (lx * tx + ly * bx + lz * nx, lx * ty + ly * by + lz * ny, lx * tz + ly * bz + lz * nz)
-
-
-@njit(cache=True)
 def _start(key, path, cdf, p0, e1, e2, normal, power, eps):
     """Bounce 0 of ``path``: a point on an emitter chosen by power, a cosine direction about its normal.
 
@@ -113,7 +105,7 @@ def _start(key, path, cdf, p0, e1, e2, normal, power, eps):
         b1 = 0.5 * v
         b0 = u - b1
     nx, ny, nz = normal[t, 0], normal[t, 1], normal[t, 2]
-    dx, dy, dz = _cosine_direction(nx, ny, nz, _uniform(key, path, 0, 3), _uniform(key, path, 0, 4))
+    dx, dy, dz = cosine_direction(nx, ny, nz, _uniform(key, path, 0, 3), _uniform(key, path, 0, 4))
     ox = p0[t, 0] + b0 * e1[t, 0] + b1 * e2[t, 0] + eps * nx
     oy = p0[t, 1] + b0 * e1[t, 1] + b1 * e2[t, 1] + eps * ny
     oz = p0[t, 2] + b0 * e1[t, 2] + b1 * e2[t, 2] + eps * nz
@@ -122,14 +114,15 @@ def _start(key, path, cdf, p0, e1, e2, normal, power, eps):
 
 @njit(cache=True)
 def _scatter(key, bounce, path, ox, oy, oz, dx, dy, dz, pr, pg, pb, thit, f, face_normal, face_p0, albedo,
-             emitter, max_bounces, rr_start):
+             specular, exponent, emitter, max_bounces, rr_start, glossy):
     """One hit of a path: its VPL, and whether and how the path goes on.
 
     (ox, oy, oz) + thit (dx, dy, dz) is the hit on triangle f (-1: a miss); (pr, pg, pb) the power the
     particle carries. Returns ``status`` (0: ended, no VPL; 1: VPL, then ended; 2: VPL and the path
-    goes on), the VPL's position, normal and intensity, and the next segment's unit direction and
+    goes on; 3: no VPL, the path goes on), the VPL's position, normal and intensity, and the next segment's unit direction and
     power: 19 values (the VPL's and next segment's fields are meaningless where status says so).
-    The next origin is the VPL position offset by eps along the VPL normal.
+    The next origin is the VPL position offset by eps along the VPL normal. ``glossy``: the path
+    goes on through the Phong lobe too (see the module docstring); the VPL stays diffuse.
     """
     if f < 0:
         return (0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
@@ -147,7 +140,9 @@ def _scatter(key, bounce, path, ox, oy, oz, dx, dy, dz, pr, pg, pb, thit, f, fac
     y -= off * ny
     z -= off * nz
     r, g, b = albedo[f, 0], albedo[f, 1], albedo[f, 2]
-    q = max(r, g, b)
+    qd = max(r, g, b)
+    qs = max(specular[f, 0], specular[f, 1], specular[f, 2]) if glossy else 0.0
+    q = qd + qs
     if q <= 0.0:
         return (0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     ir, ig, ib = pr * r / math.pi, pg * g / math.pi, pb * b / math.pi
@@ -159,10 +154,26 @@ def _scatter(key, bounce, path, ox, oy, oz, dx, dy, dz, pr, pg, pb, thit, f, fac
         if _uniform(key, path, bounce, 2) >= q:
             status = 1
         scale = 1.0 / q
+    if qd <= 0.0:  # a purely glossy surface stores no VPL (status 0 or 3)
+        status = 0 if status == 1 else 3
     ndx, ndy, ndz = 0.0, 0.0, 0.0
+    if status >= 2 and qs > 0.0 and _uniform(key, path, bounce, 3) * q >= qd:
+        # The Phong lobe, chosen with probability qs / q: f_s cos / pdf = rho_s (n + 2) / (n + 1) cos
+        # (lightcuts.render.continuation.sample_phong).
+        e = exponent[f]
+        rx, ry, rz = reflect(-dx, -dy, -dz, nx, ny, nz)
+        ndx, ndy, ndz, cos_i = phong_direction(rx, ry, rz, nx, ny, nz, e, _uniform(key, path, bounce, 0),
+                                               _uniform(key, path, bounce, 1))
+        if cos_i <= 0.0:
+            return (status - 2, x, y, z, nx, ny, nz, ir, ig, ib, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        w = scale * q / qs * (e + 2.0) / (e + 1.0) * cos_i
+        return (status, x, y, z, nx, ny, nz, ir, ig, ib, ndx, ndy, ndz,
+                pr * specular[f, 0] * w, pg * specular[f, 1] * w, pb * specular[f, 2] * w, 0.0, 0.0, 0.0)
     if status == 2:
-        ndx, ndy, ndz = _cosine_direction(nx, ny, nz, _uniform(key, path, bounce, 0),
+        ndx, ndy, ndz = cosine_direction(nx, ny, nz, _uniform(key, path, bounce, 0),
                                           _uniform(key, path, bounce, 1))
+        if qs > 0.0:
+            scale *= q / qd
     return (status, x, y, z, nx, ny, nz, ir, ig, ib, ndx, ndy, ndz,
             pr * r * scale, pg * g * scale, pb * b * scale, 0.0, 0.0, 0.0)
 
@@ -176,22 +187,22 @@ def _emit_wave(key, path0, cdf, p0, e1, e2, normal, power, eps, org, dirs, pw):
 
 
 @njit(parallel=True, cache=True)
-def _scatter_wave(key, bounce, path, org, dirs, pw, thit, prim, face_normal, face_p0, albedo, emitter,
-                  max_bounces, rr_start, eps, vpos, vnrm, vint, has_vpl, alive):
+def _scatter_wave(key, bounce, path, org, dirs, pw, thit, prim, face_normal, face_p0, albedo, specular, exponent,
+                  emitter, max_bounces, rr_start, glossy, eps, vpos, vnrm, vint, has_vpl, alive):
     """Wavefront: one bounce of every live path (:func:`_scatter`); org, dirs, pw (n, 3) are updated
     in place to the next segment; writes vpos, vnrm, vint (n, 3) and has_vpl, alive (n,) bool."""
     for i in prange(path.shape[0]):
         res = _scatter(key, bounce, path[i], org[i, 0], org[i, 1], org[i, 2], dirs[i, 0], dirs[i, 1], dirs[i, 2],
-                       pw[i, 0], pw[i, 1], pw[i, 2], thit[i], prim[i], face_normal, face_p0, albedo, emitter,
-                       max_bounces, rr_start)
+                       pw[i, 0], pw[i, 1], pw[i, 2], thit[i], prim[i], face_normal, face_p0, albedo, specular,
+                       exponent, emitter, max_bounces, rr_start, glossy)
         status = res[0]
-        has_vpl[i] = status > 0
-        alive[i] = status == 2
-        if status > 0:
+        has_vpl[i] = status == 1 or status == 2
+        alive[i] = status >= 2
+        if has_vpl[i]:
             vpos[i, 0], vpos[i, 1], vpos[i, 2] = res[1], res[2], res[3]
             vnrm[i, 0], vnrm[i, 1], vnrm[i, 2] = res[4], res[5], res[6]
             vint[i, 0], vint[i, 1], vint[i, 2] = res[7], res[8], res[9]
-        if status == 2:
+        if status >= 2:
             org[i, 0], org[i, 1], org[i, 2] = res[1] + eps * res[4], res[2] + eps * res[5], res[3] + eps * res[6]
             dirs[i, 0], dirs[i, 1], dirs[i, 2] = res[10], res[11], res[12]
             pw[i, 0], pw[i, 1], pw[i, 2] = res[13], res[14], res[15]
@@ -199,7 +210,8 @@ def _scatter_wave(key, bounce, path, org, dirs, pw, thit, prim, face_normal, fac
 
 @njit(cache=True, nogil=True)
 def _trace_fused(cdata, key, path0, n, cdf, p0, e1, e2, normal, power, eps, face_normal,
-                 face_p0, albedo, emitter, max_bounces, rr_start, slots, counts, vpos, vnrm, vint, tasks):
+                 face_p0, albedo, specular, exponent, emitter, max_bounces, rr_start, glossy, slots, counts, vpos,
+                 vnrm, vint, tasks):
     """Whole paths path0 .. path0 + n - 1 with per-ray calls of the caster (its data ``cdata``,
     lightcuts.accel.kernel_api): one thread's share, chunks of _FUSED_CHUNK paths taken from the
     counter ``tasks`` (int64 (1,), zero at the start; lightcuts.parallel.next_task). A ``nogil``
@@ -222,16 +234,17 @@ def _trace_fused(cdata, key, path0, n, cdf, p0, e1, e2, normal, power, eps, face
             for bounce in range(1, max_bounces + 1):
                 thit, f = intersect(cdata, buf, ox, oy, oz, dx, dy, dz, 0.0, np.inf)
                 res = _scatter(key, bounce, path, ox, oy, oz, dx, dy, dz, pr, pg, pb, thit, f, face_normal, face_p0,
-                               albedo, emitter, max_bounces, rr_start)
+                               albedo, specular, exponent, emitter, max_bounces, rr_start, glossy)
                 status = res[0]
                 if status == 0:
                     break
-                if slots > 0:
-                    row = i * slots + k
-                    vpos[row, 0], vpos[row, 1], vpos[row, 2] = res[1], res[2], res[3]
-                    vnrm[row, 0], vnrm[row, 1], vnrm[row, 2] = res[4], res[5], res[6]
-                    vint[row, 0], vint[row, 1], vint[row, 2] = res[7], res[8], res[9]
-                k += 1
+                if status < 3:
+                    if slots > 0:
+                        row = i * slots + k
+                        vpos[row, 0], vpos[row, 1], vpos[row, 2] = res[1], res[2], res[3]
+                        vnrm[row, 0], vnrm[row, 1], vnrm[row, 2] = res[4], res[5], res[6]
+                        vint[row, 0], vint[row, 1], vint[row, 2] = res[7], res[8], res[9]
+                    k += 1
                 if status == 1:
                     break
                 ox, oy, oz = res[1] + eps * res[4], res[2] + eps * res[5], res[3] + eps * res[6]
@@ -275,20 +288,21 @@ class _Emitters:
             np.pi * le * (self.cdf[-1] / (le @ LUMINANCE))[:, None] if self.n else np.zeros((0, 3)))
 
 
-def _trace(scene, caster, emitters, key, n_paths, max_bounces, rr_start, eps, count_only=False):
+def _trace(scene, caster, emitters, key, n_paths, max_bounces, rr_start, glossy, eps, count_only=False):
     """Trace paths 0 .. n_paths - 1; (position, normal, intensity) of their VPLs in (path, bounce)
     order, or only their number. Per-ray calls inside one kernel where the caster offers a
     ``kernel_caster``, else a wavefront over the batch API; both give the same VPLs."""
     power = emitters.unit_power / n_paths
     geometry = (np.ascontiguousarray(scene.face_normals), np.ascontiguousarray(scene.triangles[:, 0]),
-                np.ascontiguousarray(scene.albedo), np.ascontiguousarray(scene.emission.max(axis=1) > 0))
+                np.ascontiguousarray(scene.albedo), np.ascontiguousarray(scene.specular, np.float64),
+                np.ascontiguousarray(scene.exponent, np.float64), np.ascontiguousarray(scene.emission.max(axis=1) > 0))
     handles = kernel_caster_of(caster, "lights.indirect")
     route = _trace_chunk_fused if handles is not None else _trace_chunk_wavefront
     chunk = _CHUNK if handles is None else max(1, _SLOT_ROWS // max_bounces)
     parts, n_vpl = [], 0
     for path0 in range(0, n_paths, chunk):
         n = min(chunk, n_paths - path0)
-        part = route(caster, handles, emitters, geometry, key, path0, n, power, eps, max_bounces, rr_start,
+        part = route(caster, handles, emitters, geometry, key, path0, n, power, eps, (max_bounces, rr_start, glossy),
                      count_only)
         if count_only:
             n_vpl += part
@@ -301,13 +315,12 @@ def _trace(scene, caster, emitters, key, n_paths, max_bounces, rr_start, eps, co
     return tuple(np.concatenate([p[k] for p in parts]) for k in range(3))
 
 
-def _trace_chunk_fused(caster, handles, emitters, geometry, key, path0, n, power, eps, max_bounces, rr_start,
-                       count_only):
-    slots = 0 if count_only else max_bounces
+def _trace_chunk_fused(caster, handles, emitters, geometry, key, path0, n, power, eps, rules, count_only):
+    slots = 0 if count_only else rules[0]
     counts = np.empty(n, np.int64)
     vpos, vnrm, vint = (np.empty((n * slots, 3)) for _ in range(3))
     args = (handles.data, key, path0, n, emitters.cdf, emitters.p0, emitters.e1, emitters.e2, emitters.normal,
-            power, eps, *geometry, max_bounces, rr_start, slots, counts, vpos, vnrm, vint)
+            power, eps, *geometry, *rules, slots, counts, vpos, vnrm, vint)
     on_counter(_trace_fused, n, 2 * _FUSED_CHUNK, *args)
     if count_only:
         return int(counts.sum())
@@ -315,8 +328,8 @@ def _trace_chunk_fused(caster, handles, emitters, geometry, key, path0, n, power
     return vpos[used], vnrm[used], vint[used]
 
 
-def _trace_chunk_wavefront(caster, handles, emitters, geometry, key, path0, n, power, eps, max_bounces, rr_start,
-                           count_only):
+def _trace_chunk_wavefront(caster, handles, emitters, geometry, key, path0, n, power, eps, rules, count_only):
+    max_bounces = rules[0]
     org, dirs, pw = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
     _emit_wave(key, path0, emitters.cdf, emitters.p0, emitters.e1, emitters.e2, emitters.normal, power, eps,
                org, dirs, pw)
@@ -328,7 +341,7 @@ def _trace_chunk_wavefront(caster, handles, emitters, geometry, key, path0, n, p
         vpos, vnrm, vint = np.empty((m, 3)), np.empty((m, 3)), np.empty((m, 3))
         has_vpl, alive = np.empty(m, bool), np.empty(m, bool)
         _scatter_wave(key, bounce, path, org, dirs, pw, np.ascontiguousarray(thit, np.float64),
-                      np.ascontiguousarray(prim, np.int32), *geometry, max_bounces, rr_start, eps,
+                      np.ascontiguousarray(prim, np.int32), *geometry, *rules, eps,
                       vpos, vnrm, vint, has_vpl, alive)
         n_vpl += int(np.count_nonzero(has_vpl))
         if not count_only:
@@ -350,16 +363,19 @@ def ray_offset(scene) -> float:
     return 1e-5 * max(float(np.linalg.norm(hi - lo)), float(np.abs(np.concatenate([lo, hi])).max()), 1e-30)
 
 
-def indirect_lights(scene, caster, count: int, seed: int, max_bounces: int = 16, rr_start: int = 1) -> LightSet:
+def indirect_lights(scene, caster, count: int, seed: int, max_bounces: int = 16, rr_start: int = 1,
+                    glossy: bool = False) -> LightSet:
     """About ``count`` indirect VPLs by particle tracing (see the module docstring for the rules).
 
     scene : Scene (emitters, albedo, geometry)
     caster : RayCaster over the scene's triangles (``lightcuts.accel.make_caster``); None builds
         the default one
     count : wanted number of VPLs (> 0); the result holds about that many
-    seed : int; the result depends only on (scene, count, seed, max_bounces, rr_start)
+    seed : int; the result depends only on (scene, count, seed, max_bounces, rr_start, glossy)
     max_bounces : VPLs are stored at hits 1 .. max_bounces
     rr_start : Russian roulette decides at every hit b >= rr_start (0 and 1 are the same)
+    glossy : paths go on through the Phong lobe too (``render.compensation``: the eye-path
+        continuation carries the light that glossy surfaces reflect, docs/math.md "Compensation")
 
     Returns an ``oriented`` LightSet with ``indirect`` all True; ``meta`` holds ``indirect_paths``
     (N, the normaliser) and ``indirect_pilot_paths``. Empty when no particle reaches a surface.
@@ -377,12 +393,12 @@ def indirect_lights(scene, caster, count: int, seed: int, max_bounces: int = 16,
     max_bounces, rr_start = int(max_bounces), int(rr_start)
     n_pilot = min(4096, max(256, count))
     pilot_vpls = _trace(scene, caster, emitters, _stream_key(seed, _STREAM_PILOT), n_pilot, max_bounces, rr_start,
-                        eps, count_only=True)
+                        bool(glossy), eps, count_only=True)
     if pilot_vpls == 0:
         n_paths = count
     else:
         n_paths = min(math.ceil(count * n_pilot / pilot_vpls), _MAX_PATHS_PER_VPL * count)
     pos, nrm, inten = _trace(scene, caster, emitters, _stream_key(seed, _STREAM_RUN), n_paths, max_bounces,
-                             rr_start, eps)
+                             rr_start, bool(glossy), eps)
     meta = {"indirect_paths": n_paths, "indirect_pilot_paths": n_pilot}
     return LightSet(pos, nrm, inten, "oriented", np.ones(len(pos), bool), meta)

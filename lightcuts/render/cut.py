@@ -27,6 +27,7 @@ import numpy as np
 from numba import njit
 
 from lightcuts.accel.kernel_api import occluded, packet_occluded
+from lightcuts.hashing import mix64
 from lightcuts.accel.packets import lane_occluded, packet_set_ray
 from lightcuts.lights.lightset import LUMINANCE
 from lightcuts.render.bounds import DIRECTIONAL, cluster_error_bound_framed, receiver_frames
@@ -155,14 +156,17 @@ def _flush(cdata, buf, width, pk, lanes, lane_slot, slot_node, slot_mgv, slot_ra
 @njit(cache=True, error_model="numpy")
 def lightcut(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, exponent,
              node_b, node_bi, roots, light_f, eps, max_cut, clamp_d2, ray_offset, visibility, cdata, buf, width, pk,
-             heap, slot_node, slot_mgv, slot_ratio, lane_slot):
+             heap, slot_node, slot_mgv, slot_ratio, lane_slot, tol, skey):
     """Radiance reflected at x towards the viewer, by a lightcut through every tree of the forest.
 
     x, n, r, rd, rs, exponent : receiver as in :func:`light_mgv`; node_b, node_bi, roots, light_f :
     the forest; eps : relative error threshold; max_cut : cut size limit; width, pk :
     the caster's packet width (lightcuts.accel.base.KernelCaster) and the packet
     (lightcuts.accel.packets.new_ray_packet); the remaining arguments: see
-    :func:`light_mgv` and the module docstring (scratch).
+    :func:`light_mgv` and the module docstring (scratch); tol : absolute floor of the stop test
+    (luminance; 0 for the 2005 test alone): a node whose bound is <= max(eps * total, tol) is not
+    refined; skey : 0 keeps the tree's representatives, else the hash key of this shading point's
+    stochastic representatives (:func:`stochastic_estimate`).
     Returns ``(L_r, L_g, L_b, cut_size, shadow_rays, clamp_lost)``: clamp_lost = the cut's estimate
     of the luminance that clamping removed here.
 
@@ -205,7 +209,7 @@ def lightcut(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, e
     # <= eps * t needs their answers (docs/math.md, "Deferred visibility").
     lanes = np.int64(0)
     while size > 0 and n_slots < max_cut:
-        if entry_bound(heap[0]) <= eps * luminance(t0, t1, t2):
+        if entry_bound(heap[0]) <= max(eps * luminance(t0, t1, t2), tol):
             if lanes == 0:
                 break
             t0, t1, t2 = _flush(cdata, buf, width, pk, lanes, lane_slot, slot_node, slot_mgv,
@@ -293,6 +297,10 @@ def lightcut(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, e
         _flush(cdata, buf, width, pk, lanes, lane_slot, slot_node, slot_mgv, slot_ratio, node_b,
                t0, t1, t2)
 
+    if skey != 0:
+        return stochastic_estimate(node_b, node_bi, light_f, n_slots, slot_node, slot_mgv, slot_ratio, x0, x1, x2,
+                                   n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, exponent, clamp_d2,
+                                   ray_offset, visibility, cdata, buf, skey, rays)
     # The final sum again, from the cut itself: the running total above drifts by cancellation.
     t0 = 0.0
     t1 = 0.0
@@ -307,4 +315,79 @@ def lightcut(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, e
         t1 += e1
         t2 += e2
         lost += (slot_ratio[s] - 1.0) * luminance(e0, e1, e2)
+    return t0, t1, t2, n_slots, rays, lost
+
+
+@njit(cache=True, error_model="numpy", forceinline=True)
+def _u01(key, slot, level):
+    """A uniform float64 in [0, 1) that depends only on (key, slot, level)."""
+    h = mix64(key ^ mix64(np.uint64(slot) * np.uint64(64) + np.uint64(level)))
+    return np.float64(h >> np.uint64(11)) * (1.0 / 9007199254740992.0)
+
+
+@njit(cache=True, error_model="numpy")
+def draw_light(k, node_b, node_bi, key, slot):
+    """A leaf below node k drawn by a walk down its subtree, each step choosing a child with
+    probability proportional to its intensity's luminance (Yuksel 2019, with intensity as the
+    importance): ``(leaf, p)``, p the product of the steps' probabilities (= the leaf's share of
+    the node's luminance). Random numbers from (key, slot, depth)."""
+    p = 1.0
+    c = k
+    level = 0
+    while node_bi[c, NB_LEFT] >= 0:
+        left = np.int64(node_bi[c, NB_LEFT])
+        wl = luminance(np.float64(node_b[left, NB_I]), np.float64(node_b[left, NB_I + 1]),
+                       np.float64(node_b[left, NB_I + 2]))
+        wr = luminance(np.float64(node_b[left + 1, NB_I]), np.float64(node_b[left + 1, NB_I + 1]),
+                       np.float64(node_b[left + 1, NB_I + 2]))
+        total = wl + wr
+        if total <= 0.0:
+            return c, 0.0
+        if _u01(key, slot, level) * total < wl:
+            c = left
+            p *= wl / total
+        else:
+            c = left + 1
+            p *= wr / total
+        level += 1
+    return c, p
+
+
+@njit(cache=True, error_model="numpy")
+def stochastic_estimate(node_b, node_bi, light_f, n_slots, slot_node, slot_mgv, slot_ratio, x0, x1, x2, n0, n1, n2,
+                        r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, exponent, clamp_d2, ray_offset, visibility, cdata,
+                        buf, key, rays):
+    """The cut's value with stochastic representatives (docs/math.md, "Stochastic representatives"):
+    a leaf of the cut is exact (its ``slot_mgv``); an inner node C is estimated by one light j drawn
+    by :func:`draw_light` with probability p_j, ``M_j G_j V_j I_j / p_j`` (one shadow ray), which is
+    unbiased for C's lights given the cut. The cut itself was chosen with the tree's
+    representatives, independently of these draws. Returns as :func:`lightcut` (``rays`` the cut's
+    shadow rays so far, to which the draws' are added)."""
+    t0 = 0.0
+    t1 = 0.0
+    t2 = 0.0
+    lost = 0.0
+    for s in range(n_slots):
+        k = slot_node[s]
+        if node_bi[k, NB_LEFT] < 0:
+            e0 = slot_mgv[s, 0] * node_b[k, NB_I]
+            e1 = slot_mgv[s, 1] * node_b[k, NB_I + 1]
+            e2 = slot_mgv[s, 2] * node_b[k, NB_I + 2]
+            ratio = slot_ratio[s]
+        else:
+            leaf, p = draw_light(k, node_b, node_bi, key, s)
+            if p <= 0.0:
+                continue
+            j = np.int64(node_bi[leaf, NB_REP] & REP_MASK)
+            m0, m1, m2, ratio, nr = light_mgv(j, light_f, x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2,
+                                              rs0, rs1, rs2, exponent, clamp_d2, ray_offset, visibility, cdata, buf)
+            rays += nr
+            inv = 1.0 / p
+            e0 = m0 * node_b[leaf, NB_I] * inv
+            e1 = m1 * node_b[leaf, NB_I + 1] * inv
+            e2 = m2 * node_b[leaf, NB_I + 2] * inv
+        t0 += e0
+        t1 += e1
+        t2 += e2
+        lost += (ratio - 1.0) * luminance(e0, e1, e2)
     return t0, t1, t2, n_slots, rays, lost

@@ -46,8 +46,9 @@ from lightcuts.lights.environment import envmap_radiance
 from lightcuts.lights.lightset import LUMINANCE
 from lightcuts.parallel import next_task, on_counter
 from lightcuts.render import MAX_CUT
-from lightcuts.render.camera import CAM_POSITION, camera_params, check_crop, eye_ray, strata
-from lightcuts.render.cut import lightcut
+from lightcuts.render.camera import CAM_POSITION, CAM_WIDTH, camera_params, check_crop, eye_ray, strata
+from lightcuts.render.continuation import continuation, path_key
+from lightcuts.render.cut import lightcut, luminance
 from lightcuts.render.forest import build_forest
 from lightcuts.render.reference import all_lights
 from lightcuts.render.shading import facing_normal, reflect
@@ -99,11 +100,12 @@ class RenderResult:
 def _render_pixel(cdata, width, cam, seed, spp, sx, sy, px, py,
                   face_normal, albedo, specular, exponent, emission, node_b, node_bi, roots, light_f, light_i,
                   env_pixels, env_rotation, env_scale, eps, max_cut, clamp_d2, ray_offset, visibility, reference,
-                  buf, pk, heap, slot_node, slot_mgv, slot_ratio, lane_slot):
+                  compensation, stochastic, buf, pk, heap, slot_node, slot_mgv, slot_ratio, lane_slot):
     """All eye rays of pixel (px, py): returns (L_r, L_g, L_b, cut, shadow_rays, clamp_lost), cut
     and clamp_lost summed over the eye rays. An empty env_pixels (0, 0, 3) means no environment.
     cdata, width : the caster's data and packet width (lightcuts.accel.base.KernelCaster); buf : its
-    scratch."""
+    scratch. compensation : add the eye-path continuation (lightcuts.render.continuation), whose
+    rays count as shadow rays; stochastic : stochastic representatives (lightcuts.render.cut)."""
     o0, o1, o2 = cam[CAM_POSITION], cam[CAM_POSITION + 1], cam[CAM_POSITION + 2]
     a0 = 0.0
     a1 = 0.0
@@ -111,6 +113,7 @@ def _render_pixel(cdata, width, cam, seed, spp, sx, sy, px, py,
     cut = 0.0
     lost = 0.0
     rays = 0
+    pixel = np.int64(py) * np.int64(cam[CAM_WIDTH]) + np.int64(px)
     for s in range(spp):
         d0, d1, d2 = eye_ray(cam, seed, px, py, s, sx, sy)
         t, prim = intersect(cdata, buf, o0, o1, o2, d0, d1, d2, 0.0, np.inf)
@@ -138,9 +141,21 @@ def _render_pixel(cdata, width, cam, seed, spp, sx, sy, px, py,
             res = all_lights(p0, p1, p2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, exponent[prim],
                              light_f, light_i, clamp_d2, ray_offset, visibility, cdata, buf)
         else:
+            key = path_key(seed, pixel, s) if compensation or stochastic else np.uint64(0)
+            skey = key if stochastic else np.uint64(0)
             res = lightcut(p0, p1, p2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, exponent[prim],
                            node_b, node_bi, roots, light_f, eps, max_cut, clamp_d2, ray_offset, visibility,
-                           cdata, buf, width, pk, heap, slot_node, slot_mgv, slot_ratio, lane_slot)
+                           cdata, buf, width, pk, heap, slot_node, slot_mgv, slot_ratio, lane_slot, 0.0, skey)
+            if compensation:
+                c = continuation(key, p0, p1, p2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2,
+                                 exponent[prim], luminance(res[0], res[1], res[2]), face_normal, albedo, specular,
+                                 exponent, emission, node_b, node_bi, roots, light_f, eps, max_cut, clamp_d2,
+                                 ray_offset, visibility, cdata, buf, width, pk, heap, slot_node, slot_mgv,
+                                 slot_ratio, lane_slot, stochastic)
+                a0 += c[0]
+                a1 += c[1]
+                a2 += c[2]
+                rays += c[3]
         a0 += res[0]
         a1 += res[1]
         a2 += res[2]
@@ -153,8 +168,8 @@ def _render_pixel(cdata, width, cam, seed, spp, sx, sy, px, py,
 @njit(cache=True, nogil=True, error_model="numpy")
 def _render_band(cdata, width, cam, seed, spp, sx, sy, x0, x1, y0, y1, face_normal, albedo, specular, exponent,
                  emission, node_b, node_bi, roots, light_f, light_i, env_pixels, env_rotation, env_scale, eps,
-                 max_cut, clamp_d2, ray_offset, visibility, reference, pixels, out_rgb, out_cut, out_rays, out_lost,
-                 tasks):
+                 max_cut, clamp_d2, ray_offset, visibility, reference, compensation, stochastic, pixels, out_rgb,
+                 out_cut, out_rays, out_lost, tasks):
     """Render pixels [x0, x1) x [y0, y1) (full-image coordinates) into the band's output rows: one
     thread's share, chunks of CHUNK pixels taken from the counter ``tasks`` (int64 (1,), zero at the
     start; lightcuts.parallel.next_task) until none is left. A non-empty ``pixels`` ((K, 2) int64,
@@ -187,7 +202,7 @@ def _render_band(cdata, width, cam, seed, spp, sx, sy, x0, x1, y0, y1, face_norm
                 cdata, width, cam, seed, spp, sx, sy, px, py,
                 face_normal, albedo, specular, exponent, emission, node_b, node_bi, roots, light_f, light_i,
                 env_pixels, env_rotation, env_scale, eps, max_cut, clamp_d2, ray_offset, visibility, reference,
-                buf, pk, heap, slot_node, slot_mgv, slot_ratio, lane_slot)
+                compensation, stochastic, buf, pk, heap, slot_node, slot_mgv, slot_ratio, lane_slot)
             out_rgb[row, col, 0] = a0 / spp
             out_rgb[row, col, 1] = a1 / spp
             out_rgb[row, col, 2] = a2 / spp
@@ -210,7 +225,8 @@ def shadow_ray_offset(scene) -> float:
 
 
 def _render(scene, caster, lights, trees, camera, spp, eps, max_cut, clamp, clamp_min_distance, envmap, seed,
-            crop, progress, reference, visibility, pixels=None) -> RenderResult:
+            crop, progress, reference, visibility, pixels=None, compensation=False,
+            representatives="fixed") -> RenderResult:
     t_start = time.perf_counter()
     camera = camera if camera is not None else scene.camera
     cam = camera_params(camera)
@@ -234,6 +250,9 @@ def _render(scene, caster, lights, trees, camera, spp, eps, max_cut, clamp, clam
         raise LightcutsError(f"render.clamp.min_distance: {clamp_min_distance} must be a finite number >= 0")
     if int(seed) != seed or seed < 0:
         raise LightcutsError(f"seed: {seed} must be a non-negative integer")
+    if representatives not in ("fixed", "stochastic"):
+        raise LightcutsError(f"render.representatives: {representatives!r} must be 'fixed' or 'stochastic'")
+    stochastic = representatives == "stochastic"
     kc = kernel_caster_of(caster)
     if kc is None:
         raise LightcutsError(f"render.ray_caster: {type(caster).__name__} cannot be called from kernels; "
@@ -266,7 +285,8 @@ def _render(scene, caster, lights, trees, camera, spp, eps, max_cut, clamp, clam
         on_counter(_render_band, (b1 - b0) * cols, 2 * CHUNK, *kc, cam, seed, spp, sx, sy, x0, x1, y0 + b0,
                    y0 + b1, face_normal, albedo, specular, exponent, emission, f.node_b, f.node_bi, f.roots,
                    f.light_f, f.light_i, env_pixels, env_rotation, env_scale, float(eps), max_cut, float(clamp_d2),
-                   float(ray_offset), bool(visibility), bool(reference), pix[b0:b1] if len(pix) else pix,
+                   float(ray_offset), bool(visibility), bool(reference), bool(compensation and not reference),
+                   bool(stochastic and not reference), pix[b0:b1] if len(pix) else pix,
                    rgb[b0:b1], cut[b0:b1], rays[b0:b1], lost[b0:b1])
         if progress is not None:
             progress(b1 - b0)
@@ -285,7 +305,8 @@ def _render(scene, caster, lights, trees, camera, spp, eps, max_cut, clamp, clam
 def render_image(scene, caster, lights: dict, trees: dict, camera=None, spp: int = 1, eps: float = 0.02,
                  max_cut: int = 1000, clamp: bool = True, clamp_min_distance: float = 0.05, envmap=None,
                  seed: int = 0, crop=None, progress: Callable[[int], object] | None = None,
-                 reference: bool = False, visibility: bool = True, pixels=None) -> RenderResult:
+                 reference: bool = False, visibility: bool = True, pixels=None, compensation: bool = False,
+                 representatives: str = "fixed") -> RenderResult:
     """Render with lightcuts (or, with ``reference=True``, every light at every pixel).
 
     scene : lightcuts.scene.Scene; caster : a kernel-callable ray caster (``kernel_caster``: ``embree``,
@@ -305,11 +326,16 @@ def render_image(scene, caster, lights: dict, trees: dict, camera=None, spp: int
     pixels : (K, 2) int (x, y) of the pixels to render instead of the image or crop (e.g. a sample of
         pixels for an error measurement); then the result's arrays are (K, 1, ...), pixel i in row i,
         with the same values as those pixels of a whole-image render
+    compensation : add the light the VPLs lose to clamping and to glossy surfaces, by a continuation
+        of the eye path (lightcuts.render.continuation; the VPLs must come from glossy particle
+        paths, ``indirect_lights(glossy=True)``); its rays count as shadow rays
+    representatives : ``fixed`` (the trees') or ``stochastic`` (one light drawn per cut node and
+        eye ray, lightcuts.render.cut.stochastic_estimate)
 
     The caster must stay open during the call. LightcutsError for invalid parameters or inputs.
     """
     return _render(scene, caster, lights, trees, camera, spp, eps, max_cut, clamp, clamp_min_distance, envmap,
-                   seed, crop, progress, reference, visibility, pixels)
+                   seed, crop, progress, reference, visibility, pixels, compensation, representatives)
 
 
 def render_reference(scene, caster, lights: dict, camera=None, spp: int = 1, clamp: bool = True,

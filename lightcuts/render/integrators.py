@@ -15,7 +15,9 @@ Every entry also accepts ``aperture`` and ``focus_distance`` (the camera's thin 
 the traits ``reference`` (the brute-force function over the same samples, same arguments without
 ``trees``, ``eps`` and ``max_cut``, against which its errors are measured) and ``lens`` (whether it
 renders a thin lens; the plan refuses ``camera.aperture > 0`` otherwise) and ``cut_unit`` (what
-its cut sizes count, as report.json names it), and may declare ``kernels``: the module whose
+its cut sizes count, as report.json names it), and may declare ``converging`` (it takes
+``compensation`` and ``representatives``: ``render.compensation`` and ``render.representatives``;
+the plan refuses them otherwise) and ``kernels``: the module whose
 ``_render_band`` kernel its renders use and whose ``warm_kernels()`` compiles it, which the commands
 compile in a second process while the lights and trees are made (lightcuts.commands.warmup).
 
@@ -43,7 +45,7 @@ def _all_lights(scene, caster, lights: dict, *, aperture: float = 0.0, focus_dis
 
 
 @INTEGRATORS.register("lightcuts", reference=_all_lights, lens=False, cut_unit="light nodes per eye ray",
-                      kernels="lightcuts.render.integrator")
+                      kernels="lightcuts.render.integrator", converging=True)
 def lightcuts(scene, caster, lights: dict, trees: dict, *, aperture: float = 0.0, focus_distance=None, **settings):
     """A lightcut per eye ray through every light tree (Walter et al. 2005): ``render_image``.
 

@@ -16,6 +16,7 @@ import numpy as np
 from numba import njit
 
 from lightcuts.render.bounds import DIRECTIONAL, ORIENTED
+from lightcuts.sampling import reflect  # noqa: F401  (re-exported: the shading functions' home)
 
 
 @njit(cache=True, error_model="numpy")
@@ -24,13 +25,6 @@ def facing_normal(n0, n1, n2, wo0, wo1, wo2):
     if n0 * wo0 + n1 * wo1 + n2 * wo2 < 0.0:
         return -n0, -n1, -n2
     return n0, n1, n2
-
-
-@njit(cache=True, error_model="numpy")
-def reflect(wo0, wo1, wo2, n0, n1, n2):
-    """Mirror direction R = 2 (N . wo) N - wo of the unit wo about the unit N."""
-    c = 2.0 * (n0 * wo0 + n1 * wo1 + n2 * wo2)
-    return c * n0 - wo0, c * n1 - wo1, c * n2 - wo2
 
 
 @njit(cache=True, error_model="numpy")

@@ -1,0 +1,150 @@
+r"""The eye-path continuation of ``render.compensation`` (docs/math.md, "Compensation"): the light
+that the VPLs do not carry, estimated without bias by continuing the eye path from each receiver.
+
+At a receiver x the lightcut sums the direct lights and the VPLs; it misses the light that reaches x
+from a surface point y by (a) the part of y's diffuse reflection that clamping removes, a fraction
+``w(x, y) = max(0, 1 - |x - y|^2 / clamp_d2)`` of it (Kollig and Keller 2004), and (b) y's glossy
+reflection, since VPLs re-emit diffusely. So the path goes on: a direction is sampled from x's BRDF
+(the diffuse or the Phong lobe, each exactly, lightcuts.sampling), the ray finds y, and a lightcut at
+y with the BRDF ``w(x, y) f_d + f_s`` is added, weighted by the path's throughput ``f cos / pdf``.
+The light that lightcut misses in turn is the same problem one vertex on, with that BRDF in place of
+x's: the path goes on from y the same way, with Russian roulette on the throughput from the second
+vertex. A vertex whose BRDF is zero (a diffuse y farther than the clamping distance) ends the path:
+then the continuation costs one ray and no lightcut. Emitters are seen by the direct lights only
+(a continuation ray that hits an emitter's front adds its reflection, not its emission; its back
+absorbs) and the environment by its directional lights (a miss ends the path).
+
+Each secondary lightcut stops at ``eps`` of its own total or at ``tol = eps * L_1 / beta`` (``L_1``
+the receiver's estimate, ``beta`` the largest channel of the throughput), whichever is larger: its
+error then stays within eps of the pixel, and a dim continuation costs a few nodes.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from lightcuts.accel.kernel_api import intersect
+from lightcuts.hashing import mix64
+from lightcuts.render.cut import lightcut, luminance
+from lightcuts.render.shading import facing_normal
+from lightcuts.sampling import cosine_direction, phong_direction, reflect
+
+#: Path vertices after the receiver at most (Russian roulette ends nearly every path long before).
+MAX_VERTICES = 32
+#: The first vertex on which Russian roulette decides (1 = the first one after the receiver).
+RR_START = 2
+_STREAM = np.uint64(0x434F4E54)  # "CONT": the continuation's stream, apart from the eye rays'
+
+
+@njit(cache=True, error_model="numpy", forceinline=True)
+def _u01(key, vertex, dim):
+    h = mix64(key ^ mix64(np.uint64(vertex) * np.uint64(8) + np.uint64(dim)))
+    return np.float64(h >> np.uint64(11)) * (1.0 / 9007199254740992.0)
+
+
+@njit(cache=True, error_model="numpy")
+def path_key(seed, pixel, sample):
+    """The hash key of one eye ray's continuation (and of its stochastic representatives)."""
+    h = mix64(np.uint64(seed) ^ _STREAM)
+    h = mix64(h ^ np.uint64(pixel))
+    return mix64(h ^ np.uint64(sample)) | np.uint64(1)  # never 0: 0 means fixed representatives
+
+
+@njit(cache=True, error_model="numpy", forceinline=True)
+def sample_brdf(n0, n1, n2, r0, r1, r2, wd0, wd1, wd2, ws0, ws1, ws2, exponent, u0, u1, u2):
+    """A direction from the BRDF ``wd / pi + ws (n + 2) / (2 pi) cos^n`` (RGB weights wd, ws of the
+    two lobes) at a point with unit normal n and mirror direction r: the lobe with probability in
+    proportion to its weight's largest channel, then its direction exactly. Returns
+    ``(w0, w1, w2, t0, t1, t2, ok)``: the direction and ``f cos / pdf`` per channel (the mixture's
+    pdf); ok False for a direction below the surface (zero contribution)."""
+    qd = max(wd0, wd1, wd2)
+    qs = max(ws0, ws1, ws2)
+    q = qd + qs
+    if u0 * q < qd:
+        w0, w1, w2 = cosine_direction(n0, n1, n2, u1, u2)
+        cos_i = n0 * w0 + n1 * w1 + n2 * w2
+    else:
+        w0, w1, w2, cos_i = phong_direction(r0, r1, r2, n0, n1, n2, exponent, u1, u2)
+    if cos_i <= 0.0:
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, False
+    lobe = 0.0
+    if qs > 0.0:
+        lobe = (exponent + 2.0) / (2.0 * np.pi) * max(0.0, r0 * w0 + r1 * w1 + r2 * w2) ** exponent
+    pdf = qd / q * cos_i / np.pi + qs / q * lobe * (exponent + 1.0) / (exponent + 2.0)
+    if pdf <= 0.0:
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, False
+    k = cos_i / pdf
+    return (w0, w1, w2, (wd0 / np.pi + ws0 * lobe) * k, (wd1 / np.pi + ws1 * lobe) * k,
+            (wd2 / np.pi + ws2 * lobe) * k, True)
+
+
+@njit(cache=True, error_model="numpy")
+def continuation(key, x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, exponent, l1,
+                 face_normal, albedo, specular, exponents, emission, node_b, node_bi, roots, light_f, eps, max_cut,
+                 clamp_d2, ray_offset, visibility, cdata, buf, width, pk, heap, slot_node, slot_mgv, slot_ratio,
+                 lane_slot, stochastic):
+    """The compensation at one receiver (module docstring): ``(L_r, L_g, L_b, rays)``, the radiance
+    towards the viewer that the receiver's lightcut misses, and the rays cast (continuation rays
+    and the secondary cuts' shadow rays).
+
+    x, n, r, rd, rs, exponent : the receiver as in lightcuts.render.cut.lightcut (n facing the
+    viewer, r the mirror direction of the view); l1 : the luminance of its lightcut's estimate;
+    key : :func:`path_key`; the scene's per-triangle arrays, the forest, cut settings and scratch as
+    for the render kernel; stochastic : the secondary cuts use stochastic representatives.
+    """
+    b0, b1, b2 = 1.0, 1.0, 1.0
+    a0, a1, a2 = 0.0, 0.0, 0.0
+    rays = 0
+    wd0, wd1, wd2 = rd0, rd1, rd2
+    ws0, ws1, ws2 = rs0, rs1, rs2
+    e = exponent
+    for v in range(1, MAX_VERTICES + 1):
+        if max(wd0, wd1, wd2) + max(ws0, ws1, ws2) <= 0.0:
+            break
+        w0, w1, w2, t0, t1, t2, ok = sample_brdf(n0, n1, n2, r0, r1, r2, wd0, wd1, wd2, ws0, ws1, ws2, e,
+                                                 _u01(key, v, 0), _u01(key, v, 1), _u01(key, v, 2))
+        if not ok:
+            break
+        b0 *= t0
+        b1 *= t1
+        b2 *= t2
+        if v >= RR_START:
+            q = min(1.0, max(b0, b1, b2))
+            if q <= 0.0 or _u01(key, v, 3) >= q:
+                break
+            b0 /= q
+            b1 /= q
+            b2 /= q
+        rays += 1
+        t, prim = intersect(cdata, buf, x0 + ray_offset * n0, x1 + ray_offset * n1, x2 + ray_offset * n2,
+                            w0, w1, w2, 0.0, np.inf)
+        if prim < 0:
+            break
+        f0, f1, f2 = face_normal[prim, 0], face_normal[prim, 1], face_normal[prim, 2]
+        if (emission[prim, 0] > 0.0 or emission[prim, 1] > 0.0 or emission[prim, 2] > 0.0) \
+                and f0 * w0 + f1 * w1 + f2 * w2 >= 0.0:
+            break  # the back of an emitter absorbs
+        y0, y1, y2 = x0 + ray_offset * n0 + t * w0, x1 + ray_offset * n1 + t * w1, x2 + ray_offset * n2 + t * w2
+        ny0, ny1, ny2 = facing_normal(f0, f1, f2, -w0, -w1, -w2)
+        ry0, ry1, ry2 = reflect(-w0, -w1, -w2, ny0, ny1, ny2)
+        dx0, dx1, dx2 = y0 - x0, y1 - x1, y2 - x2
+        d2 = dx0 * dx0 + dx1 * dx1 + dx2 * dx2
+        w = 1.0 - d2 / clamp_d2 if d2 < clamp_d2 else 0.0
+        wd0, wd1, wd2 = w * albedo[prim, 0], w * albedo[prim, 1], w * albedo[prim, 2]
+        ws0, ws1, ws2 = specular[prim, 0], specular[prim, 1], specular[prim, 2]
+        e = exponents[prim]
+        if max(wd0, wd1, wd2) + max(ws0, ws1, ws2) <= 0.0:
+            break
+        beta = max(b0, b1, b2)
+        tol = eps * l1 / beta if beta > 0.0 else 0.0
+        skey = mix64(key ^ np.uint64(v)) | np.uint64(1) if stochastic else np.uint64(0)
+        res = lightcut(y0, y1, y2, ny0, ny1, ny2, ry0, ry1, ry2, wd0, wd1, wd2, ws0, ws1, ws2, e,
+                       node_b, node_bi, roots, light_f, eps, max_cut, clamp_d2, ray_offset, visibility,
+                       cdata, buf, width, pk, heap, slot_node, slot_mgv, slot_ratio, lane_slot, tol, skey)
+        a0 += b0 * res[0]
+        a1 += b1 * res[1]
+        a2 += b2 * res[2]
+        rays += res[4]
+        x0, x1, x2, n0, n1, n2, r0, r1, r2 = y0, y1, y2, ny0, ny1, ny2, ry0, ry1, ry2
+    return a0, a1, a2, rays
