@@ -26,7 +26,7 @@ OUTPUT_FILES = frozenset({"image.exr", "image.png", "cutsize.png", "report.json"
                           "reference.png", "scaling.csv", "scaling.png", "render_scaling.csv", "render_scaling.png",
                           "gather_scaling.csv", "gather_scaling.png",
                           "compare", "accel", "reference", "mitsuba.exr", "mitsuba.png", "lightcuts.exr",
-                          "lightcuts.png"})
+                          "lightcuts.png", "curve.csv", "curve.png", "split.csv", "path.exr", "path.png"})
 #: Sub-folders of a render's folder that belong to other commands (``lightcuts compare`` writes
 #: ``renders/<name>/compare/``, ``lightcuts reference`` ``renders/<name>/reference/``): a render's
 #: output set carries them over instead of deleting them.

@@ -176,10 +176,12 @@ class _Shared:
 
 
 def compare_run(cfg, plans, labels, pixels, store, *, source: str | None = None, diff=None,
-                mitsuba_spp: int | None = None, progress: bool = True) -> Comparison:
+                mitsuba_spp: int | None = None, mitsuba_passes: int = 0, progress: bool = True) -> Comparison:
     """Run the rows (one :class:`~lightcuts.commands.plan.Plan` and label each) and the reference on
     ``pixels`` ((K, 2) int64 or None: no error columns); ``store`` a RowStore; ``mitsuba_spp``: add
-    the Mitsuba study with a long render of that many spp; ``source``, ``diff``: recorded in the report."""
+    the Mitsuba study with a long render of that many spp, and with ``mitsuba_passes`` > 0 the
+    converging render of the study's row (:func:`converging_config`) at its own time; ``source``,
+    ``diff``: recorded in the report."""
     from lightcuts.commands.warmup import finish_warmup
 
     shared = _Shared(plans[0])
@@ -193,13 +195,37 @@ def compare_run(cfg, plans, labels, pixels, store, *, source: str | None = None,
         if mitsuba_spp is not None:
             from lightcuts.mitsuba.study import equal_time_study
 
-            base = next((r for r in results if r["row"]["label"] == DEFAULT_BUILDER), results[0])
+            i = next((k for k, r in enumerate(results) if r["row"]["label"] == DEFAULT_BUILDER), 0)
             s = shared.get()
-            mitsuba = equal_time_study(cfg, s.scene, s.envmap, base, mitsuba_spp, store)
+            converging = _converging(plans[i], s, mitsuba_passes, progress) if mitsuba_passes else None
+            mitsuba = equal_time_study(cfg, s.scene, s.envmap, results[i], mitsuba_spp, store, converging)
     finally:
         if shared.warmup is not None:
             finish_warmup(shared.warmup, timeout=0)
     return _comparison(cfg, source, results, reference, pixels, diff, mitsuba)
+
+
+def converging_config(cfg, integrator, passes: int):
+    """The config's converging settings: ``passes`` passes, and compensation with stochastic
+    representatives where the integrator takes them (its ``converging`` trait)."""
+    update = {"passes": int(passes)}
+    if integrator.trait("converging", False):
+        update.update(compensation=True, representatives="stochastic")
+    return cfg.model_copy(update={"render": cfg.render.model_copy(update=update)})
+
+
+def _converging(plan, shared, passes: int, progress: bool) -> dict:
+    """The converging render of the row ``plan`` on the shared scene: {"label", "seconds", "image"}."""
+    from lightcuts.api.passes import render_passes
+    from lightcuts.commands.plan import plan_run
+
+    cfg = converging_config(plan.cfg, plan.integrator, passes)
+    r = cfg.render
+    cplan = plan_run(cfg, render=True, tree=plan.tree)
+    result = render_passes(cfg, cplan, shared.scene, shared.caster, shared.envmap,
+                           desc=f"{cfg.name}: converging", progress=progress)
+    label = (f"{plan.tree.name}, {r.passes} passes" + (", compensation, stochastic" if r.compensation else ""))
+    return {"label": label, "seconds": result.seconds, "image": result.image}
 
 
 def _reference(cfg, shared, store, pixels, progress: bool) -> dict:

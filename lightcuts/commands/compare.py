@@ -31,6 +31,10 @@ from lightcuts.api.comparing import (ALLOWED, DEFAULT_MITSUBA_SPP, DEFAULT_PIXEL
                                      names, resolve_rows, sample_pixels)
 from lightcuts.commands.common import add_set
 from lightcuts.errors import LightcutsError
+from lightcuts.limits import MAX_PASSES
+
+#: Passes of compare --mitsuba's converging render.
+DEFAULT_MITSUBA_PASSES = 8
 
 
 def add_parser(sub) -> None:
@@ -50,6 +54,10 @@ def add_parser(sub) -> None:
                         "a long Mitsuba render (needs pip install 'lightcuts[mitsuba]')")
     p.add_argument("--mitsuba-spp", type=int, default=DEFAULT_MITSUBA_SPP,
                    help=f"samples per pixel of the long Mitsuba render (default {DEFAULT_MITSUBA_SPP})")
+    p.add_argument("--mitsuba-passes", type=int, default=DEFAULT_MITSUBA_PASSES,
+                   help="with --mitsuba: passes of the converging render (compensation and stochastic "
+                        f"representatives where the integrator takes them) compared at its own time "
+                        f"(default {DEFAULT_MITSUBA_PASSES}; 0: none)")
     p.add_argument("--out", default=None, help="output folder (default renders/<name>/compare)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     add_set(p)
@@ -78,6 +86,8 @@ def run_compare(args) -> dict:
 
         if args.mitsuba_spp < 1:
             raise LightcutsError(f"--mitsuba-spp {args.mitsuba_spp}: must be at least 1")
+        if not 0 <= args.mitsuba_passes <= MAX_PASSES:
+            raise LightcutsError(f"--mitsuba-passes {args.mitsuba_passes}: must be from 0 to {MAX_PASSES}")
         load_mitsuba()  # one line naming the install command if Mitsuba is missing
     rows = resolve_rows(cfg, args.builders, args.metrics)
     plans = [plan_run(cfg, render=True, tree=spec) for _, spec in rows]
@@ -94,6 +104,7 @@ def run_compare(args) -> dict:
     pixels = sample_pixels(width, height, cfg.render.crop, args.pixels, cfg.seed) if args.pixels else None
     result = compare_run(cfg, plans, labels, pixels, RowStore(out / "rows", args.force), source=str(Path(args.config)),
                          diff=diff, mitsuba_spp=args.mitsuba_spp if args.mitsuba else None,
+                         mitsuba_passes=args.mitsuba_passes,
                          progress=not args.no_progress)
     result.save(out)
     print(result.markdown(), end="")

@@ -24,7 +24,7 @@ standard limitation of instant radiosity; Lightcuts 2005 also uses diffuse VPLs)
 ``max(rho_s) / (max(rho_d) + max(rho_s))``, its direction sampled about the mirror direction
 (lightcuts.sampling), and Russian roulette uses ``max(rho_d) + max(rho_s)``; a VPL then carries all
 light arriving at its point, and the light that glossy surfaces reflect towards a receiver is left
-to the eye-path continuation (docs/math.md, "Compensation"). The final gather from VPLs to the
+to the eye-path continuation (docs/math.md, "Converging images"). The final gather from VPLs to the
 camera uses the full BRDF.
 
 Expectation: the VPLs of bounce k carry, in total, the power that leaves surfaces after exactly k
@@ -375,7 +375,7 @@ def indirect_lights(scene, caster, count: int, seed: int, max_bounces: int = 16,
     max_bounces : VPLs are stored at hits 1 .. max_bounces
     rr_start : Russian roulette decides at every hit b >= rr_start (0 and 1 are the same)
     glossy : paths go on through the Phong lobe too (``render.compensation``: the eye-path
-        continuation carries the light that glossy surfaces reflect, docs/math.md "Compensation")
+        continuation carries the light that glossy surfaces reflect, docs/math.md "Converging images")
 
     Returns an ``oriented`` LightSet with ``indirect`` all True; ``meta`` holds ``indirect_paths``
     (N, the normaliser) and ``indirect_pilot_paths``. Empty when no particle reaches a surface.

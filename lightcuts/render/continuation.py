@@ -1,4 +1,4 @@
-r"""The eye-path continuation of ``render.compensation`` (docs/math.md, "Compensation"): the light
+r"""The eye-path continuation of ``render.compensation`` (docs/math.md, "Converging images"): the light
 that the VPLs do not carry, estimated without bias by continuing the eye path from each receiver.
 
 At a receiver x the lightcut sums the direct lights and the VPLs; it misses the light that reaches x

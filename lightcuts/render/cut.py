@@ -300,7 +300,7 @@ def lightcut(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, e
     if skey != 0:
         return stochastic_estimate(node_b, node_bi, light_f, n_slots, slot_node, slot_mgv, slot_ratio, x0, x1, x2,
                                    n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, exponent, clamp_d2,
-                                   ray_offset, visibility, cdata, buf, skey, rays)
+                                   ray_offset, visibility, cdata, buf, width, pk, lane_slot, skey, rays)
     # The final sum again, from the cut itself: the running total above drifts by cancellation.
     t0 = 0.0
     t1 = 0.0
@@ -354,40 +354,76 @@ def draw_light(k, node_b, node_bi, key, slot):
 
 
 @njit(cache=True, error_model="numpy")
+def _cast_draws(cdata, buf, width, pk, lanes, lane_slot, slot_mgv):
+    """Cast the draws' waiting shadow rays (lanes 0..lanes-1 of pk) and zero the estimate of each
+    slot whose ray is occluded."""
+    packet_occluded(cdata, buf, pk, width, lanes)
+    for r in range(lanes):
+        if lane_occluded(pk, width, r):
+            q = lane_slot[r]
+            slot_mgv[q, 0] = 0.0
+            slot_mgv[q, 1] = 0.0
+            slot_mgv[q, 2] = 0.0
+
+
+@njit(cache=True, error_model="numpy")
 def stochastic_estimate(node_b, node_bi, light_f, n_slots, slot_node, slot_mgv, slot_ratio, x0, x1, x2, n0, n1, n2,
                         r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, exponent, clamp_d2, ray_offset, visibility, cdata,
-                        buf, key, rays):
-    """The cut's value with stochastic representatives (docs/math.md, "Stochastic representatives"):
+                        buf, width, pk, lane_slot, key, rays):
+    """The cut's value with stochastic representatives (docs/math.md, "Converging images"):
     a leaf of the cut is exact (its ``slot_mgv``); an inner node C is estimated by one light j drawn
-    by :func:`draw_light` with probability p_j, ``M_j G_j V_j I_j / p_j`` (one shadow ray), which is
+    by :func:`draw_light` with probability p_j, ``M_j G_j V_j I_j / p_j`` (one shadow ray, cast in
+    packets; none when j is C's own representative, whose ``M G V`` the slot holds), which is
     unbiased for C's lights given the cut. The cut itself was chosen with the tree's
-    representatives, independently of these draws. Returns as :func:`lightcut` (``rays`` the cut's
-    shadow rays so far, to which the draws' are added)."""
+    representatives, independently of these draws. Overwrites ``slot_mgv`` with each slot's
+    estimate. Returns as :func:`lightcut` (``rays`` the cut's shadow rays so far, to which the
+    draws' are added)."""
+    lanes = np.int64(0)
+    for s in range(n_slots):
+        k = slot_node[s]
+        if node_bi[k, NB_LEFT] < 0:
+            f, leaf = 1.0, k
+        else:
+            leaf, p = draw_light(k, node_b, node_bi, key, s)
+            if p <= 0.0:
+                slot_mgv[s, 0] = 0.0
+                slot_mgv[s, 1] = 0.0
+                slot_mgv[s, 2] = 0.0
+                continue
+            f = 1.0 / p
+            j = np.int64(node_bi[leaf, NB_REP] & REP_MASK)
+            if j != (node_bi[k, NB_REP] & REP_MASK):
+                c2 = clamp_d2 if light_f[j, LF_INDIRECT] > 0.0 else 0.0
+                m0, m1, m2, ratio, lit, o0, o1, o2, d0, d1, d2, tfar = _light_mg(
+                    np.int64(light_f[j, LF_TYPE]), light_f[j, LF_POS], light_f[j, LF_POS + 1],
+                    light_f[j, LF_POS + 2], light_f[j, LF_NRM], light_f[j, LF_NRM + 1], light_f[j, LF_NRM + 2],
+                    c2, x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, exponent, ray_offset)
+                slot_mgv[s, 0] = m0
+                slot_mgv[s, 1] = m1
+                slot_mgv[s, 2] = m2
+                slot_ratio[s] = ratio
+                if lit and visibility:
+                    rays += 1
+                    if tfar > 0.0:
+                        packet_set_ray(pk, width, lanes, o0, o1, o2, d0, d1, d2, 0.0, tfar)
+                        lane_slot[lanes] = s
+                        lanes += 1
+                        if lanes == width:
+                            _cast_draws(cdata, buf, width, pk, lanes, lane_slot, slot_mgv)
+                            lanes = 0
+        slot_mgv[s, 0] *= node_b[leaf, NB_I] * f
+        slot_mgv[s, 1] *= node_b[leaf, NB_I + 1] * f
+        slot_mgv[s, 2] *= node_b[leaf, NB_I + 2] * f
+    if lanes > 0:
+        _cast_draws(cdata, buf, width, pk, lanes, lane_slot, slot_mgv)
     t0 = 0.0
     t1 = 0.0
     t2 = 0.0
     lost = 0.0
     for s in range(n_slots):
-        k = slot_node[s]
-        if node_bi[k, NB_LEFT] < 0:
-            e0 = slot_mgv[s, 0] * node_b[k, NB_I]
-            e1 = slot_mgv[s, 1] * node_b[k, NB_I + 1]
-            e2 = slot_mgv[s, 2] * node_b[k, NB_I + 2]
-            ratio = slot_ratio[s]
-        else:
-            leaf, p = draw_light(k, node_b, node_bi, key, s)
-            if p <= 0.0:
-                continue
-            j = np.int64(node_bi[leaf, NB_REP] & REP_MASK)
-            m0, m1, m2, ratio, nr = light_mgv(j, light_f, x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2,
-                                              rs0, rs1, rs2, exponent, clamp_d2, ray_offset, visibility, cdata, buf)
-            rays += nr
-            inv = 1.0 / p
-            e0 = m0 * node_b[leaf, NB_I] * inv
-            e1 = m1 * node_b[leaf, NB_I + 1] * inv
-            e2 = m2 * node_b[leaf, NB_I + 2] * inv
+        e0, e1, e2 = slot_mgv[s, 0], slot_mgv[s, 1], slot_mgv[s, 2]
         t0 += e0
         t1 += e1
         t2 += e2
-        lost += (ratio - 1.0) * luminance(e0, e1, e2)
+        lost += (slot_ratio[s] - 1.0) * luminance(e0, e1, e2)
     return t0, t1, t2, n_slots, rays, lost

@@ -77,8 +77,12 @@ def format_mitsuba(m: dict) -> str:
              "Relative luminance error per pixel and of 8x8-block means.", "",
              "| Renderer | Image time (s) | Energy ratio | Pixel median | Pixel p99 | 8x8 median | 8x8 p99 |",
              "|---|---:|---:|---:|---:|---:|---:|"]
-    for name, r in ((f"lightcuts ({m['lightcuts_row']})", m["lightcuts"]),
-                    (f"Mitsuba path, {m['equal_time']['spp']} spp", m["equal_time"])):
+    rows = [(f"lightcuts ({m['lightcuts_row']})", m["lightcuts"]),
+            (f"Mitsuba path, {m['equal_time']['spp']} spp", m["equal_time"])]
+    if "converging" in m:
+        rows += [(f"lightcuts ({m['converging']['label']})", m["converging"]),
+                 (f"Mitsuba path, {m['converging_equal_time']['spp']} spp", m["converging_equal_time"])]
+    for name, r in rows:
         seconds = r["seconds"]
         ratio = "" if r["energy_ratio"] is None else f"{r['energy_ratio']:.4f}"
         b = r.get("block8", {})

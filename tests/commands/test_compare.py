@@ -135,7 +135,8 @@ def test_mitsuba_row_at_equal_time(tmp_path):
     pytest.importorskip("mitsuba")
     out = tmp_path / "cmp"
     assert main(["compare", str(ROOT / "configs/cornell.yaml"), "--builders", "divisive-6d,agglomerative",
-                 "--pixels", "0", "--out", str(out), "--no-progress", "--mitsuba", "--mitsuba-spp", "32", *SMALL]) == 0
+                 "--pixels", "0", "--out", str(out), "--no-progress", "--mitsuba", "--mitsuba-spp", "32",
+                 "--mitsuba-passes", "2", *SMALL]) == 0
     m = json.loads((out / "report.json").read_text())["mitsuba"]
     row = next(r for r in json.loads((out / "report.json").read_text())["rows"] if r["label"] == "agglomerative")
     assert m["lightcuts_row"] == "agglomerative" and m["budget_s"] == row["image_s"] == m["lightcuts"]["seconds"]
@@ -143,8 +144,12 @@ def test_mitsuba_row_at_equal_time(tmp_path):
     # Both renderers compute the same light transport (up to clamping and the path tracer's noise).
     for r in (m["lightcuts"], m["equal_time"]):
         assert 0.85 < r["energy_ratio"] < 1.15, r
-    assert "Lightcuts and path tracing at equal time" in (out / "table.md").read_text()
-    for name in ("reference", "equal_time"):
+    c, ce = m["converging"], m["converging_equal_time"]
+    assert c["label"] == "agglomerative, 2 passes, compensation, stochastic" and c["seconds"] > 0
+    assert ce["spp"] >= 1 and 0.85 < c["energy_ratio"] < 1.15 and 0.85 < ce["energy_ratio"] < 1.15
+    table = (out / "table.md").read_text()
+    assert "Lightcuts and path tracing at equal time" in table and c["label"] in table
+    for name in ("reference", "equal_time", "converging_equal_time"):
         assert (out / f"mitsuba-{name}.exr").is_file() and (out / f"mitsuba-{name}.png").is_file()
 
 

@@ -230,6 +230,62 @@ def test_bad_options_are_one_line_errors(tmp_path, capsys, option, value):
     assert not (tmp_path / "ref").exists()
 
 
+SMALL = ["--set", "camera.resolution=[24,24]", "--set", "lights.indirect.count=1500", "--set", "lights.direct.count=128"]
+
+
+def test_reference_curve_measures_both_renderers_at_the_same_times(mi, tmp_path, capsys):
+    out = tmp_path / "curve"
+    assert _cli(["reference", CORNELL, "--curve", "--passes", 3, "--spp", 16, "--out", out, "--no-progress",
+                 "--set", "render.compensation=true", *SMALL]) == 0
+    r = _report(out)
+    rows = r["rows"]
+    lc = [x for x in rows if x["method"] == "lightcuts"]
+    ms = [x for x in rows if x["method"] == "mitsuba"]
+    assert [x["passes"] for x in lc] == [1, 2, 3] and len(ms) == 3
+    assert all(a["seconds"] < b["seconds"] for a, b in zip(lc, lc[1:]))
+    assert all(x["spp"] >= 1 and 0.8 < x["energy_ratio"] < 1.2 for x in ms)
+    assert set(r["slope"]) == {"pixel_median", "block8_median"} and len(r["verdict"]) == 3
+    assert r["lightcuts"]["compensation"] is True and r["reference"]["spp"] == 16
+    csv = (out / "curve.csv").read_text().splitlines()
+    assert csv[0].startswith("method,passes,spp,seconds") and len(csv) == 7
+    assert sorted(p.name for p in out.iterdir()) == ["curve.csv", "curve.png", "lightcuts.exr", "lightcuts.png",
+                                                      "mitsuba.exr", "mitsuba.png", "report.json"]
+    assert "slope" in capsys.readouterr().out
+
+
+def test_reference_split_has_a_row_per_remedy(mi, tmp_path):
+    from lightcuts.api.convergence import SPLIT_ROWS
+
+    out = tmp_path / "split"
+    assert _cli(["reference", CORNELL, "--split", "--passes", 2, "--spp", 16, "--out", out, "--no-progress",
+                 *SMALL]) == 0
+    rows = _report(out)["rows"]
+    assert [x["label"] for x in rows] == [label.format(passes=2) for label, *_ in SPLIT_ROWS]
+    assert all(0.7 < x["energy_ratio"] < 1.3 for x in rows), rows
+    assert len((out / "split.csv").read_text().splitlines()) == len(SPLIT_ROWS) + 1
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--passes", "4"], "--passes: goes with --curve or --split"),
+    (["--curve", "--integrator", "direct"], "--curve: compares with the path tracer"),
+    (["--curve", "--passes", "0"], "--passes: 0 must be an integer from 1 to"),
+])
+def test_bad_study_options_are_one_line_errors(tmp_path, capsys, argv, message):
+    assert _cli(["reference", CORNELL, *argv, "--out", tmp_path / "ref"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0], err
+    assert not (tmp_path / "ref").exists()
+
+
+def test_the_curve_helpers():
+    from lightcuts.api.convergence import loglog_slope, pass_counts
+
+    assert pass_counts(1) == [1] and pass_counts(64) == [1, 2, 4, 8, 16, 32, 64] and pass_counts(6) == [1, 2, 4, 6]
+    t = np.array([1.0, 2.0, 4.0, 8.0])
+    assert loglog_slope(t, 3.0 * t ** -0.5) == pytest.approx(-0.5)
+    assert loglog_slope([1.0], [1.0]) is None and loglog_slope([1.0, 2.0], [0.0, 1.0]) is None
+
+
 def test_lightcuts_does_not_import_mitsuba_until_used():
     code = ("import sys, lightcuts.cli, lightcuts.commands.reference, lightcuts.mitsuba.render\n"
             "lightcuts.cli.build_parser()\n"

@@ -164,6 +164,23 @@ def test_vpls_and_the_continuation_partition_the_paths(glossy_box):
             assert z[-1] > 3.0 and e_mean[-1] < t_mean[-1], (z, e_mean / t_mean)
 
 
+def test_the_exact_path_tracer_agrees_with_the_oracle(glossy_box, oracle_furnaces):
+    """lightcuts.render.pathtrace (next-event estimation and BRDF draws with MIS) against the
+    brute-force oracle on the glossy room (five regions within 3 standard errors) and the diffuse
+    furnace's exact radiance (within 0.5%)."""
+    from lightcuts.render.pathtrace import path_trace as exact
+
+    scene, caster, batches = glossy_box
+    truth = regions(batches)
+    est = regions(np.stack([exact(scene, caster, spp=256, seed=s)[0].astype(np.float64) for s in range(8)]))
+    se = np.sqrt(truth.var(axis=0, ddof=1) / len(truth) + est.var(axis=0, ddof=1) / len(est))
+    assert np.all(np.abs(est.mean(axis=0) - truth.mean(axis=0)) < 3 * se), est.mean(axis=0) / truth.mean(axis=0)
+    f = furnace(0.5)
+    with make_caster(f, "embree") as c:
+        image, _ = exact(f, c, spp=1024, seed=1)
+    assert mean_luminance(image) == pytest.approx(LE / (1 - 0.5), rel=0.005)
+
+
 @pytest.fixture(scope="module")
 def cornell_lights():
     scene = cornell_box({"floor": {"specular": [0.3, 0.3, 0.3], "exponent": 40.0}})
@@ -233,3 +250,17 @@ def test_converging_render_is_identical_on_any_thread_count(cornell_lights, thre
                              representatives="stochastic")
         images.append(r.image.tobytes())
     assert images[0] == images[1]
+
+
+def test_passes_work_with_the_multidimensional_integrator_which_refuses_compensation(tmp_path):
+    from lightcuts.errors import LightcutsError
+
+    cfg = furnace_config(tmp_path, 0.5, passes=2, integrator="multidimensional")
+    two = lightcuts.render(cfg, progress=False)
+    one = lightcuts.render(cfg.model_copy(update={"render": cfg.render.model_copy(update={"passes": 1})}),
+                           progress=False)
+    assert len(two.report["passes"]) == 2 and not np.array_equal(one.image, two.image)
+    assert mean_luminance(two.image) == pytest.approx(mean_luminance(one.image), rel=0.1)
+    with pytest.raises(LightcutsError, match="render.compensation: integrator 'multidimensional' does not"):
+        lightcuts.render(furnace_config(tmp_path, 0.5, compensation=True, integrator="multidimensional"),
+                         progress=False)

@@ -1,0 +1,198 @@
+r"""A path tracer with lightcuts' own BRDF: the exact-material reference of ``lightcuts reference
+--renderer lightcuts``.
+
+Mitsuba 3 has no Phong BSDF and its stand-in reflects more at oblique angles (``lightcuts.mitsuba.export``),
+so on glossy scenes it is not the same image. This one computes lightcuts' scene as lightcuts defines
+it: the eye rays of ``render.spp`` (lightcuts.render.camera), Lambert plus energy-normalised Phong,
+two-sided surfaces, one-sided emitters whose back absorbs. At every vertex: next-event estimation
+(an emitter triangle drawn in proportion to its power, a uniform point on it, one shadow ray) and a
+direction drawn from the BRDF (lightcuts.sampling, as the continuation draws it), the two combined
+by multiple importance sampling (power heuristic); Russian roulette on the throughput from the
+fourth vertex, at most :data:`MAX_VERTICES`. Emitting triangles are the only light it knows: a run
+with a sun or an environment map is refused. Random numbers are a hash of (seed, pixel, eye ray,
+vertex, dimension): the same image on any thread count.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from numba import njit
+
+from lightcuts.accel.base import kernel_caster_of
+from lightcuts.accel.kernel_api import intersect, new_scratch, occluded
+from lightcuts.errors import LightcutsError
+from lightcuts.hashing import mix64
+from lightcuts.lights.lightset import LUMINANCE
+from lightcuts.parallel import next_task, on_counter
+from lightcuts.render.camera import CAM_POSITION, camera_params, check_crop, eye_ray, strata
+from lightcuts.render.continuation import sample_brdf
+from lightcuts.render.integrator import shadow_ray_offset
+from lightcuts.render.shading import facing_normal, material_term
+from lightcuts.sampling import reflect
+
+#: Vertices of a path at most (Russian roulette ends nearly all paths long before).
+MAX_VERTICES = 64
+_STREAM = np.uint64(0x50415448)  # "PATH"
+_CHUNK = 16  # pixels a thread takes at a time
+
+
+@njit(cache=True, error_model="numpy", forceinline=True)
+def _u(key, vertex, dim):
+    h = mix64(key ^ mix64(np.uint64(vertex) * np.uint64(8) + np.uint64(dim)))
+    return np.float64(h >> np.uint64(11)) * (1.0 / 9007199254740992.0)
+
+
+@njit(cache=True, error_model="numpy")
+def brdf_pdf(n0, n1, n2, r0, r1, r2, qd, qs, exponent, w0, w1, w2):
+    """Density (solid angle) of :func:`lightcuts.render.continuation.sample_brdf` drawing the unit
+    w: the lobe mixture with weights qd, qs (the lobes' largest channels)."""
+    cos_i = n0 * w0 + n1 * w1 + n2 * w2
+    if cos_i <= 0.0 or qd + qs <= 0.0:
+        return 0.0
+    pdf = qd * cos_i / np.pi
+    if qs > 0.0:
+        pdf += qs * (exponent + 1.0) / (2.0 * np.pi) * max(0.0, r0 * w0 + r1 * w1 + r2 * w2) ** exponent
+    return pdf / (qd + qs)
+
+
+@njit(cache=True, error_model="numpy")
+def _pixel(cdata, buf, cam, seed, spp, sx, sy, px, py, width, face_normal, albedo, specular, exponent, emission,
+           em_tri, em_cdf, em_p0, em_e1, em_e2, tri_prob, face_area, offset):
+    o0, o1, o2 = cam[CAM_POSITION], cam[CAM_POSITION + 1], cam[CAM_POSITION + 2]
+    a0 = a1 = a2 = 0.0
+    pixel = np.int64(py) * np.int64(width) + np.int64(px)
+    n_em = em_tri.shape[0]
+    total = em_cdf[n_em - 1] if n_em > 0 else 0.0
+    for s in range(spp):
+        key = mix64(mix64(mix64(np.uint64(seed) ^ _STREAM) ^ np.uint64(pixel)) ^ np.uint64(s))
+        x0, x1, x2 = o0, o1, o2
+        d0, d1, d2 = eye_ray(cam, seed, px, py, s, sx, sy)
+        b0 = b1 = b2 = 1.0
+        pdf_prev = 0.0  # density of the BRDF draw that made this segment (0: the eye ray)
+        for v in range(MAX_VERTICES):
+            t, prim = intersect(cdata, buf, x0, x1, x2, d0, d1, d2, 0.0, np.inf)
+            if prim < 0:
+                break
+            f0, f1, f2 = face_normal[prim, 0], face_normal[prim, 1], face_normal[prim, 2]
+            cos_f = f0 * d0 + f1 * d1 + f2 * d2
+            if emission[prim, 0] > 0.0 or emission[prim, 1] > 0.0 or emission[prim, 2] > 0.0:
+                if cos_f >= 0.0:
+                    break  # the back of an emitter absorbs
+                w = 1.0
+                if pdf_prev > 0.0 and tri_prob[prim] > 0.0:
+                    pl = tri_prob[prim] / face_area[prim] * t * t / -cos_f
+                    w = pdf_prev * pdf_prev / (pdf_prev * pdf_prev + pl * pl)
+                a0 += b0 * emission[prim, 0] * w
+                a1 += b1 * emission[prim, 1] * w
+                a2 += b2 * emission[prim, 2] * w
+            y0, y1, y2 = x0 + t * d0, x1 + t * d1, x2 + t * d2
+            n0, n1, n2 = facing_normal(f0, f1, f2, -d0, -d1, -d2)
+            r0, r1, r2 = reflect(-d0, -d1, -d2, n0, n1, n2)
+            rd0, rd1, rd2 = albedo[prim, 0], albedo[prim, 1], albedo[prim, 2]
+            rs0, rs1, rs2 = specular[prim, 0], specular[prim, 1], specular[prim, 2]
+            e = exponent[prim]
+            qd, qs = max(rd0, rd1, rd2), max(rs0, rs1, rs2)
+            if qd + qs <= 0.0:
+                break
+            s0, s1, s2 = y0 + offset * n0, y1 + offset * n1, y2 + offset * n2
+            # next-event estimation: an emitter triangle by power, a uniform point on it
+            if n_em > 0:
+                k = np.searchsorted(em_cdf, _u(key, v, 0) * total, side="right")
+                k = min(k, n_em - 1)
+                u1, u2 = _u(key, v, 1), _u(key, v, 2)
+                if u1 + u2 > 1.0:
+                    u1, u2 = 1.0 - u1, 1.0 - u2
+                q = em_tri[k]
+                l0 = em_p0[k, 0] + u1 * em_e1[k, 0] + u2 * em_e2[k, 0] - s0
+                l1 = em_p0[k, 1] + u1 * em_e1[k, 1] + u2 * em_e2[k, 1] - s1
+                l2 = em_p0[k, 2] + u1 * em_e1[k, 2] + u2 * em_e2[k, 2] - s2
+                dist = np.sqrt(l0 * l0 + l1 * l1 + l2 * l2)
+                if dist > offset:
+                    w0, w1, w2 = l0 / dist, l1 / dist, l2 / dist
+                    cos_l = -(face_normal[q, 0] * w0 + face_normal[q, 1] * w1 + face_normal[q, 2] * w2)
+                    m0, m1, m2 = material_term(n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, e, w0, w1, w2)
+                    if cos_l > 0.0 and (m0 > 0.0 or m1 > 0.0 or m2 > 0.0) and \
+                            not occluded(cdata, buf, s0, s1, s2, w0, w1, w2, 0.0, dist - offset):
+                        pl = tri_prob[q] / face_area[q] * dist * dist / cos_l
+                        pb = brdf_pdf(n0, n1, n2, r0, r1, r2, qd, qs, e, w0, w1, w2)
+                        c = pl / (pl * pl + pb * pb)  # the MIS weight over pl
+                        a0 += b0 * m0 * emission[q, 0] * c
+                        a1 += b1 * m1 * emission[q, 1] * c
+                        a2 += b2 * m2 * emission[q, 2] * c
+            # the next direction, from the BRDF
+            w0, w1, w2, t0, t1, t2, ok = sample_brdf(n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, e,
+                                                     _u(key, v, 3), _u(key, v, 4), _u(key, v, 5))
+            if not ok:
+                break
+            b0 *= t0
+            b1 *= t1
+            b2 *= t2
+            if v >= 3:
+                rr = min(1.0, max(b0, b1, b2))
+                if _u(key, v, 6) >= rr:
+                    break
+                b0 /= rr
+                b1 /= rr
+                b2 /= rr
+            pdf_prev = brdf_pdf(n0, n1, n2, r0, r1, r2, qd, qs, e, w0, w1, w2)
+            x0, x1, x2 = s0, s1, s2
+            d0, d1, d2 = w0, w1, w2
+    return a0 / spp, a1 / spp, a2 / spp
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _trace_band(cdata, cam, seed, spp, sx, sy, x0, x1, y0, y1, width, face_normal, albedo, specular, exponent,
+                emission, em_tri, em_cdf, em_p0, em_e1, em_e2, tri_prob, face_area, offset, out, tasks):
+    buf = new_scratch(cdata)
+    cols = x1 - x0
+    n = (y1 - y0) * cols
+    while True:
+        c = next_task(tasks)
+        if c * _CHUNK >= n:
+            break
+        for i in range(c * _CHUNK, min(n, (c + 1) * _CHUNK)):
+            row = i // cols
+            col = i - row * cols
+            r, g, b = _pixel(cdata, buf, cam, seed, spp, sx, sy, x0 + col, y0 + row, width, face_normal, albedo,
+                             specular, exponent, emission, em_tri, em_cdf, em_p0, em_e1, em_e2, tri_prob, face_area,
+                             offset)
+            out[row, col, 0] = r
+            out[row, col, 1] = g
+            out[row, col, 2] = b
+
+
+def path_trace(scene, caster, camera=None, spp: int = 64, seed: int = 0, crop=None) -> tuple[np.ndarray, float]:
+    """lightcuts' scene path-traced with its own BRDF (module docstring): ((H, W, 3) float32 linear
+    RGB of the camera's image or ``crop`` window, wall seconds). ``caster``: a kernel-callable ray
+    caster over the scene; LightcutsError for bad arguments."""
+    camera = camera if camera is not None else scene.camera
+    if int(spp) != spp or spp < 1:
+        raise LightcutsError(f"spp: {spp} must be a positive integer")
+    if int(seed) != seed or seed < 0:
+        raise LightcutsError(f"seed: {seed} must be a non-negative integer")
+    kc = kernel_caster_of(caster)
+    if kc is None:
+        raise LightcutsError(f"render.ray_caster: {type(caster).__name__} cannot be called from kernels")
+    x0, y0, x1, y1 = check_crop(crop, camera)
+    emitters = scene.emitters
+    power = scene.face_areas[emitters] * (scene.emission[emitters] @ LUMINANCE)
+    keep = power > 0
+    em_tri, power = np.ascontiguousarray(emitters[keep], np.int64), power[keep]
+    tri_prob = np.zeros(scene.n_faces)
+    if len(em_tri):
+        tri_prob[em_tri] = power / power.sum()
+    corners = scene.triangles[em_tri]
+    arrays = tuple(np.ascontiguousarray(a, np.float64) for a in (
+        scene.face_normals, scene.albedo, scene.specular, scene.exponent, scene.emission))
+    em = (em_tri, np.ascontiguousarray(np.cumsum(power), np.float64), np.ascontiguousarray(corners[:, 0], np.float64),
+          np.ascontiguousarray(corners[:, 1] - corners[:, 0], np.float64),
+          np.ascontiguousarray(corners[:, 2] - corners[:, 0], np.float64), tri_prob,
+          np.ascontiguousarray(scene.face_areas, np.float64))
+    sx, sy = strata(int(spp))
+    out = np.zeros((y1 - y0, x1 - x0, 3))
+    t0 = time.perf_counter()
+    on_counter(_trace_band, out.shape[0] * out.shape[1], 2 * _CHUNK, kc.data, camera_params(camera), int(seed),
+               int(spp), sx, sy, x0, x1, y0, y1, camera.width, *arrays, *em, shadow_ray_offset(scene), out)
+    return out.astype(np.float32), time.perf_counter() - t0

@@ -1,0 +1,50 @@
+"""``lightcuts reference --renderer lightcuts``: the run against lightcuts' own path tracer (the exact
+BRDF), which needs no Mitsuba; the runs it cannot render are refused before any work."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from lightcuts.cli import main
+
+ROOT = Path(__file__).resolve().parents[2]
+SMALL = ["--set", "camera.resolution=[24,24]", "--set", "lights.indirect.count=1500", "--set", "lights.direct.count=128"]
+
+
+def _cli(argv) -> int:
+    return main([str(a) for a in argv])
+
+
+def test_converging_run_against_the_exact_path_tracer(tmp_path):
+    """The glossy Cornell box with compensation and passes has the path tracer's energy (within 3%
+    at this size and these counts), and the files are the path tracer's. The crop leaves out the
+    directly seen light, whose sub-pixel edges hold most of the frame's energy and need hundreds of
+    eye rays to settle."""
+    out = tmp_path / "ref"
+    assert _cli(["reference", ROOT / "configs/cornell-glossy.yaml", "--renderer", "lightcuts", "--spp", 256,
+                 "--out", out, "--no-progress", "--set", "render.compensation=true", "--set", "render.passes=4",
+                 "--set", "render.representatives=stochastic", *SMALL, "--set", "camera.resolution=[32,32]",
+                 "--set", "render.crop=[0,8,32,32]"]) == 0
+    r = json.loads((out / "report.json").read_text())
+    assert r["path_tracer"]["renderer"] == "lightcuts" and r["path_tracer"]["spp"] == 256
+    assert "mitsuba" not in r and r["phong_approximated"] is False
+    assert r["lightcuts"]["passes"] == 4 and r["lightcuts"]["compensation"] is True
+    assert abs(r["comparison"]["energy_ratio"] - 1) < 0.03, r["comparison"]
+    assert sorted(p.name for p in out.iterdir()) == ["lightcuts.exr", "lightcuts.png", "path.exr", "path.png",
+                                                      "report.json"]
+
+
+@pytest.mark.parametrize("config, argv, message", [
+    ("sun-env.yaml", [], "--renderer lightcuts: its path tracer renders emitting triangles"),
+    ("cornell.yaml", ["--integrator", "direct"], "--integrator direct needs --renderer mitsuba"),
+    ("cornell.yaml", ["--max-depth", "3"], "--max-depth: goes with --renderer mitsuba"),
+])
+def test_runs_the_path_tracer_cannot_render_are_refused(tmp_path, capsys, config, argv, message):
+    assert _cli(["reference", ROOT / "configs" / config, "--renderer", "lightcuts", *argv,
+                 "--out", tmp_path / "ref"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0], err
+    assert not (tmp_path / "ref").exists()
