@@ -125,13 +125,51 @@ def test_save_load_round_trip(tmp_path):
 
 def test_sah_statistics_by_hand():
     """Two flat triangles: boxes [0,1]x[0,1]x{0} and [2,3]x[0,1]x{0} (SA 2 each), root [0,3]x[0,1]x{0}
-    (SA 6): E(boxes) = (6 + 2 + 2) / 6, E(tris) = (2 + 2) / 6, E(cost) = 0.5 E(boxes) + E(tris) = 1.5."""
+    (SA 6). The paper's Fig. 6: the root box, then both triangles: E(boxes) = 1, E(tris) = 2,
+    E(cost) = 2.5. With a box per leaf: E(boxes) = (6 + 2 + 2) / 6, E(tris) = (2 + 2) / 6, E(cost) = 1.5."""
     v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [2, 0, 0], [3, 0, 0], [2, 1, 0]], float)
     f = np.array([[0, 1, 2], [3, 4, 5]])
     s = make_caster((v, f), "bvh-sah").bvh.sah_stats()
-    assert s["E_boxes"] == pytest.approx(10 / 6) and s["E_boxes_internal"] == pytest.approx(1.0)
-    assert s["E_tris"] == pytest.approx(4 / 6) and s["E_cost"] == pytest.approx(1.5)
+    assert (s["E_boxes"], s["E_tris"], s["E_cost"]) == pytest.approx((1.0, 2.0, 2.5))
+    assert s["E_boxes_leafbox"] == pytest.approx(10 / 6) and s["E_boxes_internal"] == pytest.approx(1.0)
+    assert s["E_tris_leafbox"] == pytest.approx(4 / 6) and s["E_cost_leafbox"] == pytest.approx(1.5)
     assert s["nodes"] == 3 and s["depth"] == 1 and s["memory_bytes"] == 3 * (2 * 24 + 3 * 4)
+
+
+def test_fig6_statistics_of_a_hand_built_bvh():
+    """Root [0,4]x[0,1]^2 (SA 18) over node 1 = [0,2]x[0,1]^2 (SA 10, two leaves of SA 6) and a leaf
+    (SA 6). Paper: boxes = root 1 + node 1 (parent root) 1 = 2; triangles = the right leaf (parent
+    root) 1 + the two under node 1, 10/18 each = 1 + 20/18; cost = 0.5 * 2 + 38/18. Leaf boxes:
+    boxes (18 + 10 + 6 + 6 + 6) / 18, triangles (6 + 6 + 6) / 18."""
+    box = lambda x0, x1: ([x0, 0.0, 0.0], [x1, 1.0, 1.0])  # noqa: E731
+    boxes = [box(0, 4), box(0, 2), box(0, 1), box(1, 2), box(3, 4)]
+    bvh = FlatBVH(np.array([b[0] for b in boxes]), np.array([b[1] for b in boxes]),
+                  np.array([1, 2, -1, -1, -1], np.int32), np.array([4, 3, -1, -1, -1], np.int32),
+                  np.array([-1, -1, 0, 1, 2], np.int32), 3)
+    s = bvh.sah_stats()
+    assert s["E_boxes"] == pytest.approx(2.0) and s["E_tris"] == pytest.approx(38 / 18)
+    assert s["E_cost"] == pytest.approx(1.0 + 38 / 18)
+    assert s["E_boxes_leafbox"] == pytest.approx(46 / 18) and s["E_tris_leafbox"] == pytest.approx(1.0)
+    assert s["E_cost_leafbox"] == pytest.approx(23 / 18 + 1.0) and s["E_boxes_internal"] == pytest.approx(28 / 18)
+
+
+def test_fig6_statistics_hold_for_every_bvh_caster():
+    """On a random soup, for every BVH caster: E(cost) = 0.5 E(boxes) + E(tris) in both variants, each
+    of the 2F - 2 non-root nodes is counted once at its parent's ratio (so E(boxes) + E(tris) = 1 +
+    2 x the summed ratio of the internal nodes), and, unlike the leaf-box variant's, E(tris) differs
+    between the builders (it depends on the parents' boxes, not on the triangles' own)."""
+    v, f = soup(300, seed=4)
+    tris = {}
+    for name in ("bvh-sah", "bvh-agglomerative", "bvh-agglomerative-heap"):
+        caster = make_caster((v, f), name)
+        s = caster.stats()
+        assert s["E_cost"] == pytest.approx(0.5 * s["E_boxes"] + s["E_tris"])
+        assert s["E_cost_leafbox"] == pytest.approx(0.5 * s["E_boxes_leafbox"] + s["E_tris_leafbox"])
+        assert s["E_boxes"] + s["E_tris"] == pytest.approx(1.0 + 2.0 * s["E_boxes_internal"])
+        assert s["E_tris"] > s["E_tris_leafbox"]  # a parent's box holds its leaves' boxes
+        tris[name] = (s["E_tris"], s["E_tris_leafbox"])
+    assert tris["bvh-sah"][1] == pytest.approx(tris["bvh-agglomerative"][1])
+    assert tris["bvh-sah"][0] != pytest.approx(tris["bvh-agglomerative"][0], rel=1e-3)
 
 
 def test_sah_builder_picks_the_best_split():

@@ -11,10 +11,14 @@ A builder returns only a topology, in the convention of the light-tree builders
 triangle id for a leaf, ``prim[i] = -1`` for an internal node, and the root's index;
 :func:`from_topology` turns it into a FlatBVH with its boxes.
 
-Quality statistics (Walter et al. 2008, Fig. 6): a random line that hits the root box enters a node's
-box with probability SA(node) / SA(root). ``E(boxes)`` sums that over EVERY node (root and leaves
-included: each node's box is tested in a traversal that reaches it), ``E(tris)`` over the leaves (one
-triangle each), ``E(cost) = 0.5 E(boxes) + 1.0 E(tris)``.
+Quality statistics (Walter et al. 2008, Fig. 6), for a random line that hits the root box; a line hits
+a node's box with probability SA(node) / SA(root) (docs/math.md, "BVH quality statistics"). As the
+paper defines them, the leaves are the triangles, with no box of their own: the root box is always
+tested, and any other node's box, or a leaf's triangle, is tested when the line hits its parent's
+box. ``E(boxes)`` = 1 + the sum over internal non-root nodes of SA(parent) / SA(root), ``E(tris)`` =
+the sum over leaves of SA(parent) / SA(root), ``E(cost) = 0.5 E(boxes) + 1.0 E(tris)``. The variant
+``*_leafbox`` gives every leaf a box tested before its triangle: ``E(boxes)`` sums SA(node) / SA(root)
+over every node, ``E(tris)`` over the leaves.
 
 .npz keys (:meth:`FlatBVH.save` / :meth:`FlatBVH.load`): ``lo``, ``hi`` (N, 3) float64 node boxes;
 ``left``, ``right``, ``prim`` (N,) int32 (as above, depth-first); ``n_faces`` () int64; ``builder``
@@ -65,22 +69,35 @@ class FlatBVH:
         return int(_depth(self.left, self.right)) if self.n_nodes else 0
 
     def sah_stats(self) -> dict:
-        """Walter et al. 2008 Fig. 6: ``E_boxes`` (every node, root and leaves included),
-        ``E_boxes_internal`` (internal nodes only), ``E_tris`` (leaves), ``E_cost`` = 0.5 E_boxes +
-        E_tris, plus ``nodes``, ``depth`` and ``memory_bytes`` (node arrays). An empty BVH or a root
-        box of zero area gives zeros."""
+        """Walter et al. 2008 Fig. 6 as the paper defines it (module docstring): ``E_boxes``,
+        ``E_tris``, ``E_cost`` = 0.5 E_boxes + E_tris; the leaf-box variant ``E_boxes_leafbox``,
+        ``E_tris_leafbox``, ``E_cost_leafbox`` and ``E_boxes_internal`` (internal nodes only, root
+        included); plus ``nodes``, ``depth`` and ``memory_bytes`` (node arrays). An empty BVH or a
+        root box of zero area gives zeros; a single leaf (no box) gives E_tris 1."""
         out = {"nodes": self.n_nodes, "depth": self.depth, "memory_bytes": self.nbytes}
+        keys = ("E_boxes", "E_tris", "E_cost", "E_boxes_leafbox", "E_tris_leafbox", "E_cost_leafbox",
+                "E_boxes_internal")
         if self.n_nodes == 0:
-            return {**out, "E_boxes": 0.0, "E_boxes_internal": 0.0, "E_tris": 0.0, "E_cost": 0.0}
+            return {**out, **dict.fromkeys(keys, 0.0)}
         e = self.hi - self.lo
         sa = 2.0 * (e[:, 0] * e[:, 1] + e[:, 1] * e[:, 2] + e[:, 2] * e[:, 0])
         root = sa[0]
+        if self.left[0] < 0:
+            return {**out, **dict.fromkeys(keys, 0.0), "E_tris": 1.0, "E_cost": 1.0}
         ratio = sa / root if root > 0 else np.zeros_like(sa)
         leaf = self.prim >= 0
-        boxes = float(ratio.sum())
-        tris = float(ratio[leaf].sum())
-        return {**out, "E_boxes": boxes, "E_boxes_internal": float(ratio[~leaf].sum()), "E_tris": tris,
-                "E_cost": 0.5 * boxes + 1.0 * tris}
+        inner = np.flatnonzero(~leaf)
+        # each internal node's box, when hit, tests its two children: a box each, or a triangle each
+        boxes, tris = 1.0, 0.0
+        for child in (self.left[inner], self.right[inner]):
+            child_leaf = leaf[child]
+            boxes += float(ratio[inner][~child_leaf].sum())
+            tris += float(ratio[inner][child_leaf].sum())
+        boxes_lb = float(ratio.sum())
+        tris_lb = float(ratio[leaf].sum())
+        return {**out, "E_boxes": boxes, "E_tris": tris, "E_cost": 0.5 * boxes + tris,
+                "E_boxes_leafbox": boxes_lb, "E_tris_leafbox": tris_lb, "E_cost_leafbox": 0.5 * boxes_lb + tris_lb,
+                "E_boxes_internal": float(ratio[~leaf].sum())}
 
     def save(self, path) -> None:
         """Write the BVH as .npz (keys in the module docstring), atomically."""
