@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import yaml
-from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from lightcuts.errors import LightcutsError
 from lightcuts.limits import MAX_COORD, MAX_CUT, MAX_EXPOSURE, MAX_PASSES, MAX_PIXELS, MAX_SEED
@@ -87,6 +87,68 @@ def _plugin_shape(v):
 PluginSpec = Annotated[Any, AfterValidator(_plugin_shape)]
 
 
+class EmitterGrid(Strict):
+    """Emitters at the centres of a ``count`` = [nx, ny, nz] grid of cells over the box [lo, hi]
+    (an axis with lo = hi takes count 1: e.g. lamps in a plane below a ceiling)."""
+
+    lo: Vec3
+    hi: Vec3
+    count: Annotated[list[Annotated[int, Field(ge=1, le=1024)]], Field(min_length=3, max_length=3)]
+
+    @field_validator("hi")
+    @classmethod
+    def _ordered(cls, v, info):
+        lo = info.data.get("lo")
+        if lo is not None and any(h < lo_ for h, lo_ in zip(v, lo)):
+            raise ValueError("must be >= lo on every axis")
+        return v
+
+
+class AreaLight(Strict):
+    """An emitter placed by the config (``scene.emitters``): a ``quad`` of ``size`` [w, h] or a
+    ``disc`` of ``radius`` (a fan of ``segments`` triangles), centred at ``position`` or at every
+    cell centre of ``grid``, emitting ``radiance`` (W/(m^2 sr), RGB) on the side of ``normal``; a
+    quad's w runs along ``normal x up`` (default up: whichever of +y, +z is less parallel to the
+    normal). The triangles join the scene as emitters of albedo ``albedo`` (default 0: black)."""
+
+    shape: Literal["quad", "disc"] = "quad"
+    position: Vec3 | None = None
+    grid: EmitterGrid | None = None
+    normal: Vec3
+    up: Vec3 | None = None
+    size: Annotated[list[Annotated[float, Field(gt=0, le=MAX_COORD)]], Field(min_length=2, max_length=2)] | None = None
+    radius: Annotated[float, Field(gt=0, le=MAX_COORD)] | None = None
+    segments: Annotated[int, Field(ge=3, le=1024)] = 32
+    radiance: Vec3
+    albedo: Vec3 = [0.0, 0.0, 0.0]
+
+    @field_validator("radiance", "albedo")
+    @classmethod
+    def _non_negative(cls, v):
+        if any(x < 0 for x in v):
+            raise ValueError("values must be >= 0")
+        return v
+
+    @model_validator(mode="after")
+    def _complete(self):
+        if (self.position is None) == (self.grid is None):
+            raise ValueError("give exactly one of position and grid")
+        if self.shape == "quad" and (self.size is None or self.radius is not None):
+            raise ValueError("a quad takes size: [w, h] (and no radius)")
+        if self.shape == "disc" and (self.radius is None or self.size is not None):
+            raise ValueError("a disc takes radius (and no size)")
+        if not any(self.normal):
+            raise ValueError("normal: must not be zero")
+        if self.up is not None:
+            n, u = self.normal, self.up
+            c = (n[1] * u[2] - n[2] * u[1], n[2] * u[0] - n[0] * u[2], n[0] * u[1] - n[1] * u[0])
+            if sum(x * x for x in c) <= 1e-18 * sum(x * x for x in n) * sum(x * x for x in u):
+                raise ValueError("up: zero or parallel to the normal")
+        if not any(self.radiance):
+            raise ValueError("radiance: must not be all zero")
+        return self
+
+
 class SceneConfig(Strict):
     """``builtin: cornell`` or ``procedural: {type: kitchen, triangles: ...}``, and/or a list of mesh
     files (OBJ with MTL, PLY, glTF/GLB); a ``procedural: {type: gallery}`` places the meshes on
@@ -98,6 +160,8 @@ class SceneConfig(Strict):
     meshes: list[MeshEntry] = []
     # Optional material override of named built-in surfaces (e.g. floor, short_block, tall_block).
     materials: dict[str, Material] = {}
+    # Area lights placed by the config (quads, discs, grids of them), added as emitting triangles.
+    emitters: list[AreaLight] = []
 
 
 class CameraConfig(Strict):
@@ -215,7 +279,7 @@ class RenderConfig(Strict):
     integrator: PluginSpec = DEFAULT_INTEGRATOR
     # Render only the window [x0, y0, x1, y1) of the image (pixels), e.g. for reference checks.
     crop: Annotated[list[int], Field(min_length=4, max_length=4)] | None = None
-    # The light that VPLs lose (docs/math.md, "Compensation"): the part clamping removes and the part
+    # The light that VPLs lose (docs/math.md, "Converging images"): the part clamping removes and the part
     # glossy surfaces reflect, carried by a continuation of the eye path (integrator lightcuts).
     compensation: bool = False
     # A cut node's representative: the tree's (fixed, Lightcuts 2005) or one drawn per shading point
@@ -314,8 +378,8 @@ def config_from_dict(data: dict, source: str = "<config>", base_dir: str | Path 
     except ValidationError as exc:
         raise LightcutsError(_format_error(source, exc)) from None
     sc = cfg.scene
-    if sc.builtin is None and sc.procedural is None and not sc.meshes:
-        raise LightcutsError(f"{source}: scene: needs builtin, procedural or meshes")
+    if sc.builtin is None and sc.procedural is None and not sc.meshes and not sc.emitters:
+        raise LightcutsError(f"{source}: scene: needs builtin, procedural, meshes or emitters")
     if sc.builtin is not None and sc.procedural is not None:
         raise LightcutsError(f"{source}: scene: give at most one of builtin or procedural")
     env = cfg.lights.environment

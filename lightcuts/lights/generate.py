@@ -49,19 +49,23 @@ def lights_from_config(cfg, scene, caster=None, envmap: EnvironmentMap | None = 
     ``count_direct``, ``count_indirect``, ``count_sun``, ``count_environment`` (0 when absent) plus
     ``indirect_paths`` (the particle paths that normalise the VPLs).
 
-    LightcutsError: direct/indirect count > 0 in a scene without emitters, a zero sun direction,
-    an unreadable environment map, or no lights at all.
+    LightcutsError: an indirect count > 0, or a direct count the config sets, in a scene without
+    emitters (the default direct count then makes no lights), a zero sun direction, an unreadable
+    environment map, or no lights at all.
     """
     lc = cfg.lights
     have_emitters = len(scene.emitters) > 0 and float((scene.emission.max(axis=1) * scene.face_areas).max()) > 0
-    for key, n in (("direct", lc.direct.count), ("indirect", lc.indirect.count)):
+    n_direct = lc.direct.count
+    if not have_emitters and "count" not in lc.direct.model_fields_set:
+        n_direct = 0  # the default count samples the emitters there are, none here
+    for key, n in (("direct", n_direct), ("indirect", lc.indirect.count)):
         if n > 0 and not have_emitters:
             raise LightcutsError(f"lights.{key}: the scene has no emissive triangles "
-                                 f"(set lights.{key}.count: 0)")
+                                 f"(set lights.{key}.count: 0, or place area lights with scene.emitters)")
     oriented, directional = [], []
     counts = {"count_direct": 0, "count_indirect": 0, "count_sun": 0, "count_environment": 0, "indirect_paths": 0}
-    if lc.direct.count > 0:
-        d = direct_lights(scene, lc.direct.count, sub_seed(cfg.seed, "direct"))
+    if n_direct > 0:
+        d = direct_lights(scene, n_direct, sub_seed(cfg.seed, "direct"))
         oriented.append(d)
         counts["count_direct"] = len(d)
     if lc.indirect.count > 0:

@@ -19,6 +19,7 @@ import numpy as np
 from lightcuts.config.schema import CameraConfig, RunConfig
 from lightcuts.errors import LightcutsError
 from lightcuts.registry import Resolved
+from lightcuts.scene.emitters import emitter_scene
 from lightcuts.scene.loaders import concatenate_scenes, load_mesh
 from lightcuts.scene.registry import make_scene, resolve_scene
 from lightcuts.scene.scene import Camera, Scene
@@ -83,8 +84,9 @@ def scene_from_config(cfg: RunConfig, scene_type: Resolved | None = None) -> Sce
     scene_type : the plan's resolved scene type (else resolved here, see
         :func:`~lightcuts.scene.registry.resolve_scene`)
     Triangle order: the scene type's first, then each of ``cfg.scene.meshes`` in order (a type with
-    the ``exhibits`` trait, the gallery, takes them: its room, then the meshes on their plinths). Mesh
-    paths are resolved with ``cfg.resolve``; errors name ``scene.meshes.<i>``.
+    the ``exhibits`` trait, the gallery, takes them: its room, then the meshes on their plinths),
+    then the area lights of ``cfg.scene.emitters`` (lightcuts.scene.emitters). Mesh paths are
+    resolved with ``cfg.resolve``; errors name ``scene.meshes.<i>`` / ``scene.emitters.<i>``.
     """
     sc = cfg.scene
     scene_type = resolve_scene(sc) if scene_type is None else scene_type
@@ -101,8 +103,9 @@ def scene_from_config(cfg: RunConfig, scene_type: Resolved | None = None) -> Sce
             exhibits, offsets = [], []
         parts.append(make_scene(scene_type, sc.materials, exhibits, offsets, name=cfg.name))
     parts += meshes
+    parts += [emitter_scene(e, key=f"scene.emitters.{i}") for i, e in enumerate(sc.emitters)]
     if not parts:
-        raise LightcutsError("scene: needs builtin, procedural or meshes")
+        raise LightcutsError("scene: needs builtin, procedural, meshes or emitters")
     base_camera = parts[0].camera if scene_type is not None else None
     scene = concatenate_scenes(parts, name=cfg.name)
     scene.camera = _apply_camera_config(cfg.camera, base_camera, scene.bounds)

@@ -63,7 +63,7 @@ def write(tmp_path, text, name="run.yaml"):
     ("scene: {builtin: cornell}\nlights: {environment: {file: sky.exr}}\n", "lights.environment.file: no such file"),
     ("scene: {builtin: cornell}\nlights: {environment: {count: 4}}\n", "lights.environment: give exactly one"),
     ("render: {eps: 0.1}\n", "scene: Field required"),
-    ("scene: {}\n", "scene: needs builtin, procedural or meshes"),
+    ("scene: {}\n", "scene: needs builtin, procedural, meshes or emitters"),
     ("scene: [1, 2\n", "invalid YAML"),
     ("- 1\n- 2\n", "expected a mapping"),
     ("scene: {builtin: cornell}\ncamera: {resolution: [0, 10]}\n", "camera.resolution.0:"),

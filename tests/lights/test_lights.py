@@ -488,8 +488,11 @@ def test_lights_from_config_saves_and_loads(box, box_caster, tmp_path):
 
 def test_lights_from_config_errors(box, box_caster):
     dark = Scene(box.vertices, box.faces, 0.5, 0.0, 0.0, 0.0, name="dark")
-    with pytest.raises(LightcutsError, match="lights.direct: the scene has no emissive triangles"):
+    # the default direct count samples the emitters there are: none here, so no lights at all
+    with pytest.raises(LightcutsError, match="lights: the config yields no lights"):
         lights_from_config(_cfg({}), dark, box_caster)
+    with pytest.raises(LightcutsError, match="lights.direct: the scene has no emissive triangles"):
+        lights_from_config(_cfg({"direct": {"count": 1024}}), dark, box_caster)
     with pytest.raises(LightcutsError, match="lights.indirect: the scene has no emissive triangles"):
         lights_from_config(_cfg({"direct": {"count": 0}, "indirect": {"count": 10}}), dark, box_caster)
     with pytest.raises(LightcutsError, match="lights.sun.direction"):
