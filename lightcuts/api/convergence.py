@@ -204,9 +204,10 @@ def energy_split(make_run, passes: int, spp: int, progress: bool = True, log=pri
     """The energy split (module docstring). ``make_run(overrides) -> (cfg, plan)`` loads the run
     with extra ``--set`` overrides; ``passes`` the pass count of the rows that use passes; ``spp``
     the path tracer's samples per pixel; ``tracer`` the path tracer (default Mitsuba's; rows it
-    cannot render, direct light with lightcuts' own, are left out). Returns {"rows": [{"label", "overrides", "diffuse", "integrator",
-    "seconds", "energy_ratio", "pixel_median", "block8_median"}, ...], "references": {(diffuse,
-    integrator) as "path" / "path-diffuse" / "direct": {"seconds"}}, "images": {same keys: image}}."""
+    cannot render, direct light with lightcuts' own, are left out). Returns {"rows": [{"label",
+    "overrides", "diffuse", "integrator", "seconds", "energy_ratio", "pixel_median",
+    "block8_median"}, ...], "references": {key: {"seconds"}}, "images": {key: image}}, one key per
+    long render: "path", "path-diffuse" (materials made diffuse) or "direct"."""
     from lightcuts.api.passes import render_passes
 
     tracer = tracer or PathTracer()

@@ -11,7 +11,7 @@ import pytest
 from lightcuts.cli import main
 
 ROOT = Path(__file__).resolve().parents[2]
-SMALL = ["--set", "camera.resolution=[24,24]", "--set", "lights.indirect.count=1500", "--set", "lights.direct.count=128"]
+SMALL = ["--set", "lights.indirect.count=1500", "--set", "lights.direct.count=128"]
 
 
 def _cli(argv) -> int:

@@ -230,7 +230,8 @@ def test_bad_options_are_one_line_errors(tmp_path, capsys, option, value):
     assert not (tmp_path / "ref").exists()
 
 
-SMALL = ["--set", "camera.resolution=[24,24]", "--set", "lights.indirect.count=1500", "--set", "lights.direct.count=128"]
+SMALL = ["--set", "camera.resolution=[24,24]", "--set", "lights.indirect.count=1500",
+         "--set", "lights.direct.count=128"]
 
 
 def test_reference_curve_measures_both_renderers_at_the_same_times(mi, tmp_path, capsys):
