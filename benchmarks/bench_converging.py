@@ -49,7 +49,7 @@ def passes_image(cfg, plan, scene, envmap):
 
 
 def main() -> None:
-    from lightcuts.api.convergence import PathTracer, _measures, error_curve, long_reference
+    from lightcuts.api.convergence import PathTracer, error_curve, long_reference, measures
     from lightcuts.io import save_csv
 
     p = argparse.ArgumentParser()
@@ -90,7 +90,7 @@ def main() -> None:
             c, pl = run(path, ov)
             res = passes_image(c, pl, scene, envmap)
             rows.append({"config": cfg.name, "row": label, "passes": c.render.passes, "seconds": res.seconds,
-                         **_measures(res.image, ref), "reference_spp": a.spp, "reference_seconds": t_ref})
+                         **measures(res.image, ref), "reference_spp": a.spp, "reference_seconds": t_ref})
             print(rows[-1], flush=True)
         # cost of compensation per pass: interleaved pairs, the pass after the first (kernels loaded)
         plain, comp = [], []

@@ -7,8 +7,8 @@ Mitsuba 3's or lightcuts' own with the exact BRDF (``--renderer``).
 
 * :func:`error_curve`: lightcuts' running mean after passes 1, 2, 4, ... N of the config
   (:func:`lightcuts.api.passes.render_passes`, wall time of lights, trees and image summed over the
-  passes), and the path tracer run for each of those times (its spp from the rate of one
-  timing run); the slope of lightcuts' error against time, fitted in log-log (an unbiased
+  passes), and the path tracer run for each of those times (its spp from timing runs of at least
+  a second); the slope of lightcuts' error against time, fitted in log-log (an unbiased
   estimator falls as time^-0.5; a biased one flattens at its bias), and at each time who is lower.
 * :func:`energy_split`: where a remaining energy gap comes from: the ratio with clamping off, with
   each remedy on in turn, with every material made diffuse (in both renderers) and for direct light
@@ -28,7 +28,8 @@ MEASURES = (("energy_ratio", ("energy_ratio",)), ("pixel_median", ("pixel", "med
             ("block8_median", ("block8", "median")))
 
 
-def _measures(image: np.ndarray, reference: np.ndarray) -> dict:
+def measures(image: np.ndarray, reference: np.ndarray) -> dict:
+    """{"energy_ratio", "pixel_median", "block8_median"} of the image against the reference."""
     from lightcuts.report.images import compare_images
 
     c = compare_images(image, reference)
@@ -151,7 +152,7 @@ def error_curve(cfg, plan, scene, envmap, caster, reference: np.ndarray, progres
     def on_pass(p, mean, seconds):
         if p + 1 in points:
             rows.append({"method": "lightcuts", "passes": p + 1, "spp": cfg.render.spp * (p + 1),
-                         "seconds": seconds, **_measures(mean, reference)})
+                         "seconds": seconds, **measures(mean, reference)})
             log(f"{cfg.name}: lightcuts {p + 1} passes, {seconds:.2f} s: block8 median "
                 f"{100 * (rows[-1]['block8_median'] or 0):.2f}%")
 
@@ -162,7 +163,7 @@ def error_curve(cfg, plan, scene, envmap, caster, reference: np.ndarray, progres
         spp = max(1, int(round(r["seconds"] / per_spp)))
         image, seconds = tracer.render(cfg, scene, envmap, spp, cfg.seed)
         rows.append({"method": tracer.label, "passes": None, "spp": spp, "seconds": seconds,
-                     **_measures(image, reference)})
+                     **measures(image, reference)})
         log(f"{cfg.name}: {tracer.label} {spp} spp, {seconds:.2f} s: block8 median "
             f"{100 * (rows[-1]['block8_median'] or 0):.2f}%")
     lc = [r for r in rows if r["method"] == "lightcuts"]
@@ -231,6 +232,6 @@ def energy_split(make_run, passes: int, spp: int, progress: bool = True, log=pri
         with plan.make_caster(scene) as caster:
             result = render_passes(cfg, plan, scene, caster, envmap, desc=f"{cfg.name}: {label}", progress=progress)
         rows.append({"label": label, "overrides": overrides, "diffuse": diffuse, "integrator": integrator,
-                     "seconds": result.seconds, **_measures(result.image, images[key])})
+                     "seconds": result.seconds, **measures(result.image, images[key])})
         log(f"{cfg.name}: {label}: energy lightcuts/{tracer.name} {rows[-1]['energy_ratio']:.4f}")
     return {"rows": rows, "references": refs, "images": images}
