@@ -226,12 +226,12 @@ def energy_split(make_run, passes: int, spp: int, progress: bool = True, log=pri
         envmap = plan.environment()
         key = integrator + ("-diffuse" if diffuse else "")
         if key not in images:
-            log(f"{cfg.name}: {tracer.name} {integrator}{' (diffuse materials)' if diffuse else ''}, {spp} spp ...")
+            log(f"{cfg.name}: {tracer.label} {integrator}{' (diffuse materials)' if diffuse else ''}, {spp} spp ...")
             images[key], seconds = long_reference(cfg, scene, envmap, spp, integrator, tracer)
             refs[key] = {"seconds": seconds}
         with plan.make_caster(scene) as caster:
             result = render_passes(cfg, plan, scene, caster, envmap, desc=f"{cfg.name}: {label}", progress=progress)
         rows.append({"label": label, "overrides": overrides, "diffuse": diffuse, "integrator": integrator,
                      "seconds": result.seconds, **measures(result.image, images[key])})
-        log(f"{cfg.name}: {label}: energy lightcuts/{tracer.name} {rows[-1]['energy_ratio']:.4f}")
+        log(f"{cfg.name}: {label}: energy lightcuts/{tracer.label} {rows[-1]['energy_ratio']:.4f}")
     return {"rows": rows, "references": refs, "images": images}
