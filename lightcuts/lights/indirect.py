@@ -266,8 +266,12 @@ def _stream_key(seed: int, stream: int) -> np.uint64:
     return np.uint64(_mix64_py((seed & 0xFFFFFFFFFFFFFFFF) ^ _mix64_py(stream)))
 
 
-class _Emitters:
-    """Emitter triangles of non-zero power with their sampling CDF, as arrays for the kernels."""
+class Emitters:
+    """Emitter triangles of non-zero power with their sampling CDF, as arrays for the kernels: tri
+    (E,) int64 triangle ids, cdf (E,) the running sum of ``area * luminance(Le)`` (a triangle is
+    drawn in proportion to its power), p0, e1, e2 (E, 3) a corner and the two edges from it
+    (a point ``p0 + b1 e1 + b2 e2``), normal (E, 3), unit_power (E, 3). Shared by the particle
+    tracer and the path tracer (lightcuts.render.pathtrace)."""
 
     def __init__(self, scene):
         tri = scene.emitters
@@ -277,6 +281,7 @@ class _Emitters:
         keep = weight > 0
         tri, le, weight = tri[keep], le[keep], weight[keep]
         corners = scene.triangles[tri]
+        self.tri = np.ascontiguousarray(tri, np.int64)
         self.n = len(tri)
         self.cdf = np.cumsum(weight)
         self.p0 = np.ascontiguousarray(corners[:, 0])
@@ -381,7 +386,7 @@ def indirect_lights(scene, caster, count: int, seed: int, max_bounces: int = 16,
     (N, the normaliser) and ``indirect_pilot_paths``. Empty when no particle reaches a surface.
     """
     count = int(count)
-    emitters = _Emitters(scene)
+    emitters = Emitters(scene)
     empty = LightSet(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)), "oriented", np.zeros(0, bool))
     if count <= 0 or emitters.n == 0:
         return empty

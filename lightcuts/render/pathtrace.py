@@ -24,7 +24,7 @@ from lightcuts.accel.base import kernel_caster_of
 from lightcuts.accel.kernel_api import intersect, new_scratch, occluded
 from lightcuts.errors import LightcutsError
 from lightcuts.hashing import mix64
-from lightcuts.lights.lightset import LUMINANCE
+from lightcuts.lights.indirect import Emitters
 from lightcuts.parallel import next_task, on_counter
 from lightcuts.render.camera import CAM_POSITION, camera_params, check_crop, eye_ray, strata
 from lightcuts.render.continuation import sample_brdf
@@ -176,19 +176,13 @@ def path_trace(scene, caster, camera=None, spp: int = 64, seed: int = 0, crop=No
     if kc is None:
         raise LightcutsError(f"render.ray_caster: {type(caster).__name__} cannot be called from kernels")
     x0, y0, x1, y1 = check_crop(crop, camera)
-    emitters = scene.emitters
-    power = scene.face_areas[emitters] * (scene.emission[emitters] @ LUMINANCE)
-    keep = power > 0
-    em_tri, power = np.ascontiguousarray(emitters[keep], np.int64), power[keep]
-    tri_prob = np.zeros(scene.n_faces)
-    if len(em_tri):
-        tri_prob[em_tri] = power / power.sum()
-    corners = scene.triangles[em_tri]
+    e = Emitters(scene)
+    tri_prob = np.zeros(scene.n_faces)  # the probability that next-event estimation draws a triangle
+    if e.n:
+        tri_prob[e.tri] = np.diff(e.cdf, prepend=0.0) / e.cdf[-1]
     arrays = tuple(np.ascontiguousarray(a, np.float64) for a in (
         scene.face_normals, scene.albedo, scene.specular, scene.exponent, scene.emission))
-    em = (em_tri, np.ascontiguousarray(np.cumsum(power), np.float64), np.ascontiguousarray(corners[:, 0], np.float64),
-          np.ascontiguousarray(corners[:, 1] - corners[:, 0], np.float64),
-          np.ascontiguousarray(corners[:, 2] - corners[:, 0], np.float64), tri_prob,
+    em = (e.tri, np.ascontiguousarray(e.cdf, np.float64), e.p0, e.e1, e.e2, tri_prob,
           np.ascontiguousarray(scene.face_areas, np.float64))
     sx, sy = strata(int(spp))
     out = np.zeros((y1 - y0, x1 - x0, 3))
