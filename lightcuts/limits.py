@@ -12,6 +12,7 @@ MAX_PIXELS : the largest image (and environment map), width x height: 2**25 pixe
     (e.g. 8192 x 4096); the render's buffers take about 60 bytes a pixel
 MAX_EXPOSURE : the largest |render.exposure| in stops, so that 2**exposure is a normal float64
 MAX_PASSES : the most ``render.passes`` (each pass makes its lights and trees again)
+MAX_CONTINUATION_RAYS : the most ``render.continuation_rays`` (compensation continuations per eye ray)
 """
 
 SLOT_BITS = 20
@@ -22,3 +23,4 @@ MAX_SEED = 2**63 - 1
 MAX_PIXELS = 1 << 25
 MAX_EXPOSURE = 1000.0
 MAX_PASSES = 4096
+MAX_CONTINUATION_RAYS = 64

@@ -175,6 +175,7 @@ def _run(cfg, plan, source, reference: bool, progress: bool, warmup: list) -> Re
         "clamping": {"enabled": cfg.render.clamp.enabled, "min_distance": cfg.render.clamp.min_distance,
                      "clamped_energy_fraction": float(passes.clamped_fraction)},
         "compensation": cfg.render.compensation,
+        "continuation_rays": cfg.render.continuation_rays,
         "representatives": cfg.render.representatives,
         "passes": passes.records,
         "preprocess_seconds": t_pre,

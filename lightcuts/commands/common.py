@@ -39,7 +39,8 @@ def render_timed(cfg, scene, caster, lights: dict, trees: dict, envmap=None, des
     ``seconds`` measures rendering; a progress bar ``desc`` counts rows. ``integrator``: the plan's
     resolved ``render.integrator`` (else resolved here); load False skips the one-pixel render (the
     kernel is loaded already; load_seconds is then 0). The image uses ``cfg.seed`` and, for an
-    integrator with the ``converging`` trait, ``render.compensation`` and ``render.representatives``."""
+    integrator with the ``converging`` trait, ``render.compensation``, ``render.continuation_rays``
+    and ``render.representatives``."""
     import time
 
     from lightcuts.render.integrators import INTEGRATORS
@@ -49,7 +50,8 @@ def render_timed(cfg, scene, caster, lights: dict, trees: dict, envmap=None, des
     render_image = integrator.obj
     settings = render_settings(cfg, scene.camera, envmap)
     if integrator.trait("converging", False):
-        settings.update(compensation=cfg.render.compensation, representatives=cfg.render.representatives)
+        settings.update(compensation=cfg.render.compensation, representatives=cfg.render.representatives,
+                        continuation_rays=cfg.render.continuation_rays)
     crop = cfg.render.crop
     x0, y0 = (0, 0) if crop is None else crop[:2]
     rows = scene.camera.height if crop is None else crop[3] - crop[1]

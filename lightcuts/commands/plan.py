@@ -111,6 +111,9 @@ def plan_run(cfg: RunConfig, *, render: bool = False, tree: TreeSpec | None = No
         raise LightcutsError(f"camera.aperture: integrator {integrator.name!r} renders a pinhole camera only; "
                              f"use render.integrator: {' or '.join(lens)} for depth of field")
     r = cfg.render
+    if r.continuation_rays > 1 and not r.compensation:
+        raise LightcutsError(f"render.continuation_rays: {r.continuation_rays} continuations per eye ray need "
+                             "render.compensation: true")
     for key, asked in (("compensation", r.compensation), ("representatives", r.representatives == "stochastic")):
         if asked and not integrator.trait("converging", False):
             converging = [e.name for e in INTEGRATORS.entries() if e.trait("converging", False)]

@@ -154,7 +154,7 @@ def _lightcuts_image(args, cfg, plan, scene, envmap, warmup: list) -> tuple[np.n
     return result.image, {"lights": {typ: len(ls) for typ, ls in light_sets.items()},
                           "lights_indirect": int(sum(int(ls.indirect.sum()) for ls in light_sets.values())),
                           "eps": cfg.render.eps, "spp": cfg.render.spp, "compensation": cfg.render.compensation,
-                          "representatives": cfg.render.representatives, "passes": cfg.render.passes,
+                          "continuation_rays": cfg.render.continuation_rays, "representatives": cfg.render.representatives, "passes": cfg.render.passes,
                           "preprocess_seconds": t_pre, "render_seconds": result.render_seconds,
                           "seconds": result.seconds, "cut_size_mean": float(result.cut_size.mean())}
 

@@ -14,7 +14,7 @@ import yaml
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from lightcuts.errors import LightcutsError
-from lightcuts.limits import MAX_COORD, MAX_CUT, MAX_EXPOSURE, MAX_PASSES, MAX_PIXELS, MAX_SEED
+from lightcuts.limits import MAX_CONTINUATION_RAYS, MAX_COORD, MAX_CUT, MAX_EXPOSURE, MAX_PASSES, MAX_PIXELS, MAX_SEED
 
 #: Run defaults, here alone: commands and stage APIs read them from this module.
 DEFAULT_BUILDER = "agglomerative"
@@ -282,6 +282,8 @@ class RenderConfig(Strict):
     # The light that VPLs lose (docs/math.md, "Converging images"): the part clamping removes and the part
     # glossy surfaces reflect, carried by a continuation of the eye path (integrator lightcuts).
     compensation: bool = False
+    # With compensation: the continuations averaged per eye ray (less noise in that light per cut).
+    continuation_rays: Annotated[int, Field(ge=1, le=MAX_CONTINUATION_RAYS)] = 1
     # A cut node's representative: the tree's (fixed, Lightcuts 2005) or one drawn per shading point
     # in proportion to intensity (stochastic: unbiased for the VPLs; integrator lightcuts).
     representatives: Literal["fixed", "stochastic"] = "fixed"

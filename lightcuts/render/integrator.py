@@ -42,6 +42,8 @@ from lightcuts.accel.base import kernel_caster_of
 from lightcuts.accel.kernel_api import intersect, new_scratch
 from lightcuts.accel.packets import new_ray_packet
 from lightcuts.errors import LightcutsError
+from lightcuts.limits import MAX_CONTINUATION_RAYS
+from lightcuts.hashing import mix64
 from lightcuts.lights.environment import envmap_radiance
 from lightcuts.lights.lightset import LUMINANCE
 from lightcuts.parallel import next_task, on_counter
@@ -104,8 +106,8 @@ def _render_pixel(cdata, width, cam, seed, spp, sx, sy, px, py,
     """All eye rays of pixel (px, py): returns (L_r, L_g, L_b, cut, shadow_rays, clamp_lost), cut
     and clamp_lost summed over the eye rays. An empty env_pixels (0, 0, 3) means no environment.
     cdata, width : the caster's data and packet width (lightcuts.accel.base.KernelCaster); buf : its
-    scratch. compensation : add the eye-path continuation (lightcuts.render.continuation), whose
-    rays count as shadow rays; stochastic : stochastic representatives (lightcuts.render.cut)."""
+    scratch. compensation : the eye-path continuations (lightcuts.render.continuation) averaged per
+    eye ray (0: none), whose rays count as shadow rays; stochastic : stochastic representatives (lightcuts.render.cut)."""
     o0, o1, o2 = cam[CAM_POSITION], cam[CAM_POSITION + 1], cam[CAM_POSITION + 2]
     a0 = 0.0
     a1 = 0.0
@@ -146,15 +148,17 @@ def _render_pixel(cdata, width, cam, seed, spp, sx, sy, px, py,
             res = lightcut(p0, p1, p2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, exponent[prim],
                            node_b, node_bi, roots, light_f, eps, max_cut, clamp_d2, ray_offset, visibility,
                            cdata, buf, width, pk, heap, slot_node, slot_mgv, slot_ratio, lane_slot, 0.0, skey)
-            if compensation:
-                c = continuation(key, p0, p1, p2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2,
+            # compensation continuations of this eye ray, averaged (0: off); the first keeps the eye ray's key
+            for i in range(compensation):
+                ckey = key if i == 0 else mix64(key ^ np.uint64(i)) | np.uint64(1)
+                c = continuation(ckey, p0, p1, p2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2,
                                  exponent[prim], luminance(res[0], res[1], res[2]), face_normal, albedo, specular,
                                  exponent, emission, node_b, node_bi, roots, light_f, eps, max_cut, clamp_d2,
                                  ray_offset, visibility, cdata, buf, width, pk, heap, slot_node, slot_mgv,
                                  slot_ratio, lane_slot, stochastic)
-                a0 += c[0]
-                a1 += c[1]
-                a2 += c[2]
+                a0 += c[0] / compensation
+                a1 += c[1] / compensation
+                a2 += c[2] / compensation
                 rays += c[3]
         a0 += res[0]
         a1 += res[1]
@@ -226,7 +230,7 @@ def shadow_ray_offset(scene) -> float:
 
 def _render(scene, caster, lights, trees, camera, spp, eps, max_cut, clamp, clamp_min_distance, envmap, seed,
             crop, progress, reference, visibility, pixels=None, compensation=False,
-            representatives="fixed") -> RenderResult:
+            representatives="fixed", continuation_rays=1) -> RenderResult:
     t_start = time.perf_counter()
     camera = camera if camera is not None else scene.camera
     cam = camera_params(camera)
@@ -250,6 +254,9 @@ def _render(scene, caster, lights, trees, camera, spp, eps, max_cut, clamp, clam
         raise LightcutsError(f"render.clamp.min_distance: {clamp_min_distance} must be a finite number >= 0")
     if int(seed) != seed or seed < 0:
         raise LightcutsError(f"seed: {seed} must be a non-negative integer")
+    if int(continuation_rays) != continuation_rays or not 1 <= continuation_rays <= MAX_CONTINUATION_RAYS:
+        raise LightcutsError(f"render.continuation_rays: {continuation_rays} must be an integer from 1 to "
+                             f"{MAX_CONTINUATION_RAYS}")
     if representatives not in ("fixed", "stochastic"):
         raise LightcutsError(f"render.representatives: {representatives!r} must be 'fixed' or 'stochastic'")
     stochastic = representatives == "stochastic"
@@ -285,7 +292,7 @@ def _render(scene, caster, lights, trees, camera, spp, eps, max_cut, clamp, clam
         on_counter(_render_band, (b1 - b0) * cols, 2 * CHUNK, *kc, cam, seed, spp, sx, sy, x0, x1, y0 + b0,
                    y0 + b1, face_normal, albedo, specular, exponent, emission, f.node_b, f.node_bi, f.roots,
                    f.light_f, f.light_i, env_pixels, env_rotation, env_scale, float(eps), max_cut, float(clamp_d2),
-                   float(ray_offset), bool(visibility), bool(reference), bool(compensation and not reference),
+                   float(ray_offset), bool(visibility), bool(reference), int(continuation_rays) if compensation and not reference else 0,
                    bool(stochastic and not reference), pix[b0:b1] if len(pix) else pix,
                    rgb[b0:b1], cut[b0:b1], rays[b0:b1], lost[b0:b1])
         if progress is not None:
@@ -306,7 +313,7 @@ def render_image(scene, caster, lights: dict, trees: dict, camera=None, spp: int
                  max_cut: int = 1000, clamp: bool = True, clamp_min_distance: float = 0.05, envmap=None,
                  seed: int = 0, crop=None, progress: Callable[[int], object] | None = None,
                  reference: bool = False, visibility: bool = True, pixels=None, compensation: bool = False,
-                 representatives: str = "fixed") -> RenderResult:
+                 representatives: str = "fixed", continuation_rays: int = 1) -> RenderResult:
     """Render with lightcuts (or, with ``reference=True``, every light at every pixel).
 
     scene : lightcuts.scene.Scene; caster : a kernel-callable ray caster (``kernel_caster``: ``embree``,
@@ -331,11 +338,14 @@ def render_image(scene, caster, lights: dict, trees: dict, camera=None, spp: int
         paths, ``indirect_lights(glossy=True)``); its rays count as shadow rays
     representatives : ``fixed`` (the trees') or ``stochastic`` (one light drawn per cut node and
         eye ray, lightcuts.render.cut.stochastic_estimate)
+    continuation_rays : with compensation, the continuations averaged per eye ray (1 to
+        MAX_CONTINUATION_RAYS): less noise in the compensated light for one primary cut
 
     The caster must stay open during the call. LightcutsError for invalid parameters or inputs.
     """
     return _render(scene, caster, lights, trees, camera, spp, eps, max_cut, clamp, clamp_min_distance, envmap,
-                   seed, crop, progress, reference, visibility, pixels, compensation, representatives)
+                   seed, crop, progress, reference, visibility, pixels, compensation, representatives,
+                   continuation_rays)
 
 
 def render_reference(scene, caster, lights: dict, camera=None, spp: int = 1, clamp: bool = True,

@@ -89,6 +89,11 @@ def test_furnace_with_compensation_and_passes_has_the_exact_radiance(tmp_path, o
     assert mean_luminance(on.image) == pytest.approx(exact, rel=0.01)
     assert mean_luminance(off.image) < 0.97 * exact
     assert len(on.report["passes"]) == 6
+    # several continuations per eye ray: the same expectation, less noise for the cut
+    many = lightcuts.render(furnace_config(tmp_path, *material, compensation=True, continuation_rays=4, passes=3),
+                            progress=False)
+    assert mean_luminance(many.image) == pytest.approx(exact, rel=0.01)
+    assert many.report["continuation_rays"] == 4
 
 
 def inward_box(lo, hi, albedo, specular, exponent, emission):
@@ -261,6 +266,8 @@ def test_passes_work_with_the_multidimensional_integrator_which_refuses_compensa
                            progress=False)
     assert len(two.report["passes"]) == 2 and not np.array_equal(one.image, two.image)
     assert mean_luminance(two.image) == pytest.approx(mean_luminance(one.image), rel=0.1)
+    with pytest.raises(LightcutsError, match="render.continuation_rays: 4 continuations per eye ray need"):
+        lightcuts.render(furnace_config(tmp_path, 0.5, continuation_rays=4), progress=False)
     with pytest.raises(LightcutsError, match="render.compensation: integrator 'multidimensional' does not"):
         lightcuts.render(furnace_config(tmp_path, 0.5, compensation=True, integrator="multidimensional"),
                          progress=False)
