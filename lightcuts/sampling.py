@@ -1,5 +1,6 @@
-"""Direction sampling shared by the particle tracer (lightcuts.lights.indirect) and the eye-path
-continuation (lightcuts.render.continuation): numba device functions of scalars.
+"""Direction sampling shared by the particle tracer (lightcuts.lights.indirect), the eye-path
+continuation (lightcuts.render.continuation) and the path tracer (lightcuts.render.pathtrace):
+numba device functions of scalars.
 
 The BRDF is Lambert plus energy-normalised Phong, ``f = rho_d / pi + rho_s (n + 2) / (2 pi)
 cos^n(alpha)`` with alpha the angle between the sampled direction and the mirror direction R
@@ -10,6 +11,8 @@ cos^n(alpha)`` with alpha the angle between the sampled direction and the mirror
 from __future__ import annotations
 
 import math
+
+import numpy as np
 
 from numba import njit
 
@@ -50,3 +53,44 @@ def phong_direction(r0, r1, r2, n0, n1, n2, exponent, u1, u2):
     phi = 2.0 * math.pi * u2
     w0, w1, w2 = frame_direction(r0, r1, r2, sa * math.cos(phi), sa * math.sin(phi), ca)
     return w0, w1, w2, n0 * w0 + n1 * w1 + n2 * w2
+
+
+@njit(cache=True, error_model="numpy", forceinline=True)
+def sample_brdf(n0, n1, n2, r0, r1, r2, wd0, wd1, wd2, ws0, ws1, ws2, exponent, u0, u1, u2):
+    """A direction from the BRDF ``wd / pi + ws (n + 2) / (2 pi) cos^n`` (RGB weights wd, ws of the
+    two lobes) at a point with unit normal n and mirror direction r: the lobe with probability in
+    proportion to its weight's largest channel, then its direction exactly. Returns
+    ``(w0, w1, w2, t0, t1, t2, pdf, ok)``: the direction and ``f cos / pdf`` per channel (the mixture's
+    pdf), the pdf itself; ok False for a direction below the surface (zero contribution)."""
+    qd = max(wd0, wd1, wd2)
+    qs = max(ws0, ws1, ws2)
+    q = qd + qs
+    if u0 * q < qd:
+        w0, w1, w2 = cosine_direction(n0, n1, n2, u1, u2)
+        cos_i = n0 * w0 + n1 * w1 + n2 * w2
+    else:
+        w0, w1, w2, cos_i = phong_direction(r0, r1, r2, n0, n1, n2, exponent, u1, u2)
+    if cos_i <= 0.0:
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, False
+    lobe = 0.0
+    if qs > 0.0:
+        lobe = (exponent + 2.0) / (2.0 * np.pi) * max(0.0, r0 * w0 + r1 * w1 + r2 * w2) ** exponent
+    pdf = qd / q * cos_i / np.pi + qs / q * lobe * (exponent + 1.0) / (exponent + 2.0)
+    if pdf <= 0.0:
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, False
+    k = cos_i / pdf
+    return (w0, w1, w2, (wd0 / np.pi + ws0 * lobe) * k, (wd1 / np.pi + ws1 * lobe) * k,
+            (wd2 / np.pi + ws2 * lobe) * k, pdf, True)
+
+
+@njit(cache=True, error_model="numpy")
+def brdf_pdf(n0, n1, n2, r0, r1, r2, qd, qs, exponent, w0, w1, w2):
+    """Density (solid angle) of :func:`sample_brdf` drawing the unit
+    w: the lobe mixture with weights qd, qs (the lobes' largest channels)."""
+    cos_i = n0 * w0 + n1 * w1 + n2 * w2
+    if cos_i <= 0.0 or qd + qs <= 0.0:
+        return 0.0
+    pdf = qd * cos_i / np.pi
+    if qs > 0.0:
+        pdf += qs * (exponent + 1.0) / (2.0 * np.pi) * max(0.0, r0 * w0 + r1 * w1 + r2 * w2) ** exponent
+    return pdf / (qd + qs)

@@ -159,7 +159,7 @@ def _scatter(key, bounce, path, ox, oy, oz, dx, dy, dz, pr, pg, pb, thit, f, fac
     ndx, ndy, ndz = 0.0, 0.0, 0.0
     if status >= 2 and qs > 0.0 and _uniform(key, path, bounce, 3) * q >= qd:
         # The Phong lobe, chosen with probability qs / q: f_s cos / pdf = rho_s (n + 2) / (n + 1) cos
-        # (lightcuts.render.continuation.sample_phong).
+        # (lightcuts.sampling.sample_brdf).
         e = exponent[f]
         rx, ry, rz = reflect(-dx, -dy, -dz, nx, ny, nz)
         ndx, ndy, ndz, cos_i = phong_direction(rx, ry, rz, nx, ny, nz, e, _uniform(key, path, bounce, 0),

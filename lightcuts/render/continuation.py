@@ -28,7 +28,7 @@ from lightcuts.accel.kernel_api import intersect
 from lightcuts.hashing import mix64
 from lightcuts.render.cut import lightcut, luminance
 from lightcuts.render.shading import facing_normal
-from lightcuts.sampling import cosine_direction, phong_direction, reflect
+from lightcuts.sampling import reflect, sample_brdf
 
 #: Path vertices after the receiver at most (Russian roulette ends nearly every path long before).
 MAX_VERTICES = 32
@@ -49,34 +49,6 @@ def path_key(seed, pixel, sample):
     h = mix64(np.uint64(seed) ^ _STREAM)
     h = mix64(h ^ np.uint64(pixel))
     return mix64(h ^ np.uint64(sample)) | np.uint64(1)  # never 0: 0 means fixed representatives
-
-
-@njit(cache=True, error_model="numpy", forceinline=True)
-def sample_brdf(n0, n1, n2, r0, r1, r2, wd0, wd1, wd2, ws0, ws1, ws2, exponent, u0, u1, u2):
-    """A direction from the BRDF ``wd / pi + ws (n + 2) / (2 pi) cos^n`` (RGB weights wd, ws of the
-    two lobes) at a point with unit normal n and mirror direction r: the lobe with probability in
-    proportion to its weight's largest channel, then its direction exactly. Returns
-    ``(w0, w1, w2, t0, t1, t2, ok)``: the direction and ``f cos / pdf`` per channel (the mixture's
-    pdf); ok False for a direction below the surface (zero contribution)."""
-    qd = max(wd0, wd1, wd2)
-    qs = max(ws0, ws1, ws2)
-    q = qd + qs
-    if u0 * q < qd:
-        w0, w1, w2 = cosine_direction(n0, n1, n2, u1, u2)
-        cos_i = n0 * w0 + n1 * w1 + n2 * w2
-    else:
-        w0, w1, w2, cos_i = phong_direction(r0, r1, r2, n0, n1, n2, exponent, u1, u2)
-    if cos_i <= 0.0:
-        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, False
-    lobe = 0.0
-    if qs > 0.0:
-        lobe = (exponent + 2.0) / (2.0 * np.pi) * max(0.0, r0 * w0 + r1 * w1 + r2 * w2) ** exponent
-    pdf = qd / q * cos_i / np.pi + qs / q * lobe * (exponent + 1.0) / (exponent + 2.0)
-    if pdf <= 0.0:
-        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, False
-    k = cos_i / pdf
-    return (w0, w1, w2, (wd0 / np.pi + ws0 * lobe) * k, (wd1 / np.pi + ws1 * lobe) * k,
-            (wd2 / np.pi + ws2 * lobe) * k, True)
 
 
 @njit(cache=True, error_model="numpy")
@@ -102,7 +74,7 @@ def continuation(key, x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs
     for v in range(1, MAX_VERTICES + 1):
         if max(wd0, wd1, wd2) + max(ws0, ws1, ws2) <= 0.0:
             break
-        w0, w1, w2, t0, t1, t2, ok = sample_brdf(n0, n1, n2, r0, r1, r2, wd0, wd1, wd2, ws0, ws1, ws2, e,
+        w0, w1, w2, t0, t1, t2, _, ok = sample_brdf(n0, n1, n2, r0, r1, r2, wd0, wd1, wd2, ws0, ws1, ws2, e,
                                                  _u01(key, v, 0), _u01(key, v, 1), _u01(key, v, 2))
         if not ok:
             break

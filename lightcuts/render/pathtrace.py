@@ -27,10 +27,9 @@ from lightcuts.hashing import mix64
 from lightcuts.lights.indirect import Emitters
 from lightcuts.parallel import next_task, on_counter
 from lightcuts.render.camera import CAM_POSITION, camera_params, check_crop, eye_ray, strata
-from lightcuts.render.continuation import sample_brdf
 from lightcuts.render.integrator import shadow_ray_offset
 from lightcuts.render.shading import facing_normal, material_term
-from lightcuts.sampling import reflect
+from lightcuts.sampling import brdf_pdf, reflect, sample_brdf
 
 #: Vertices of a path at most (Russian roulette ends nearly all paths long before).
 MAX_VERTICES = 64
@@ -42,19 +41,6 @@ _CHUNK = 16  # pixels a thread takes at a time
 def _u(key, vertex, dim):
     h = mix64(key ^ mix64(np.uint64(vertex) * np.uint64(8) + np.uint64(dim)))
     return np.float64(h >> np.uint64(11)) * (1.0 / 9007199254740992.0)
-
-
-@njit(cache=True, error_model="numpy")
-def brdf_pdf(n0, n1, n2, r0, r1, r2, qd, qs, exponent, w0, w1, w2):
-    """Density (solid angle) of :func:`lightcuts.render.continuation.sample_brdf` drawing the unit
-    w: the lobe mixture with weights qd, qs (the lobes' largest channels)."""
-    cos_i = n0 * w0 + n1 * w1 + n2 * w2
-    if cos_i <= 0.0 or qd + qs <= 0.0:
-        return 0.0
-    pdf = qd * cos_i / np.pi
-    if qs > 0.0:
-        pdf += qs * (exponent + 1.0) / (2.0 * np.pi) * max(0.0, r0 * w0 + r1 * w1 + r2 * w2) ** exponent
-    return pdf / (qd + qs)
 
 
 @njit(cache=True, error_model="numpy")
@@ -122,8 +108,8 @@ def _pixel(cdata, buf, cam, seed, spp, sx, sy, px, py, width, face_normal, albed
                         a1 += b1 * m1 * emission[q, 1] * c
                         a2 += b2 * m2 * emission[q, 2] * c
             # the next direction, from the BRDF
-            w0, w1, w2, t0, t1, t2, ok = sample_brdf(n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, e,
-                                                     _u(key, v, 3), _u(key, v, 4), _u(key, v, 5))
+            w0, w1, w2, t0, t1, t2, pdf_prev, ok = sample_brdf(n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1,
+                                                               rs2, e, _u(key, v, 3), _u(key, v, 4), _u(key, v, 5))
             if not ok:
                 break
             b0 *= t0
@@ -136,7 +122,6 @@ def _pixel(cdata, buf, cam, seed, spp, sx, sy, px, py, width, face_normal, albed
                 b0 /= rr
                 b1 /= rr
                 b2 /= rr
-            pdf_prev = brdf_pdf(n0, n1, n2, r0, r1, r2, qd, qs, e, w0, w1, w2)
             x0, x1, x2 = s0, s1, s2
             d0, d1, d2 = w0, w1, w2
     return a0 / spp, a1 / spp, a2 / spp
