@@ -4,7 +4,7 @@ A path starts at a point on an emissive triangle chosen in proportion to its pow
 ``A_t * luminance(Le_t)``, point uniform on it) with a cosine-distributed direction about the
 emitter's normal. Its starting power is the emitted power divided by the sampling density and by
 the number of paths N: ``Phi_0 = pi * Le_t * A_t / (N * p_t)`` (RGB). At every surface hit
-(bounce b >= 1), with the surface's diffuse albedo ``rho`` (RGB):
+(bounce b >= 1), with the surface's diffuse albedo ``rho`` (RGB, its texture's at the hit):
 
 1. a VPL is stored at the hit: ``oriented``, its normal the geometric normal turned towards the
    side the particle came from (surfaces reflect on both sides), intensity ``Phi * rho / pi``
@@ -63,6 +63,7 @@ from lightcuts.hashing import mix64 as _mix64
 from lightcuts.lights.lightset import LUMINANCE, LightSet
 from lightcuts.parallel import next_task, on_counter
 from lightcuts.sampling import cosine_direction, phong_direction, reflect
+from lightcuts.scene.textures import albedo_at
 
 # Stream tags for the counter-based hash: the pilot's paths are independent of the run's.
 _STREAM_RUN = 0x52554E
@@ -114,7 +115,7 @@ def _start(key, path, cdf, p0, e1, e2, normal, power, eps):
 
 @njit(cache=True)
 def _scatter(key, bounce, path, ox, oy, oz, dx, dy, dz, pr, pg, pb, thit, f, face_normal, face_p0, albedo,
-             specular, exponent, emitter, max_bounces, rr_start, glossy):
+             tex, specular, exponent, emitter, max_bounces, rr_start, glossy):
     """One hit of a path: its VPL, and whether and how the path goes on.
 
     (ox, oy, oz) + thit (dx, dy, dz) is the hit on triangle f (-1: a miss); (pr, pg, pb) the power the
@@ -139,7 +140,7 @@ def _scatter(key, bounce, path, ox, oy, oz, dx, dy, dz, pr, pg, pb, thit, f, fac
     x -= off * nx
     y -= off * ny
     z -= off * nz
-    r, g, b = albedo[f, 0], albedo[f, 1], albedo[f, 2]
+    r, g, b = albedo_at(albedo, tex, f, x, y, z)
     qd = max(r, g, b)
     qs = max(specular[f, 0], specular[f, 1], specular[f, 2]) if glossy else 0.0
     q = qd + qs
@@ -187,14 +188,14 @@ def _emit_wave(key, path0, cdf, p0, e1, e2, normal, power, eps, org, dirs, pw):
 
 
 @njit(parallel=True, cache=True)
-def _scatter_wave(key, bounce, path, org, dirs, pw, thit, prim, face_normal, face_p0, albedo, specular, exponent,
-                  emitter, max_bounces, rr_start, glossy, eps, vpos, vnrm, vint, has_vpl, alive):
+def _scatter_wave(key, bounce, path, org, dirs, pw, thit, prim, face_normal, face_p0, albedo, tex, specular,
+                  exponent, emitter, max_bounces, rr_start, glossy, eps, vpos, vnrm, vint, has_vpl, alive):
     """Wavefront: one bounce of every live path (:func:`_scatter`); org, dirs, pw (n, 3) are updated
     in place to the next segment; writes vpos, vnrm, vint (n, 3) and has_vpl, alive (n,) bool."""
     for i in prange(path.shape[0]):
         res = _scatter(key, bounce, path[i], org[i, 0], org[i, 1], org[i, 2], dirs[i, 0], dirs[i, 1], dirs[i, 2],
-                       pw[i, 0], pw[i, 1], pw[i, 2], thit[i], prim[i], face_normal, face_p0, albedo, specular,
-                       exponent, emitter, max_bounces, rr_start, glossy)
+                       pw[i, 0], pw[i, 1], pw[i, 2], thit[i], prim[i], face_normal, face_p0, albedo, tex,
+                       specular, exponent, emitter, max_bounces, rr_start, glossy)
         status = res[0]
         has_vpl[i] = status == 1 or status == 2
         alive[i] = status >= 2
@@ -210,7 +211,7 @@ def _scatter_wave(key, bounce, path, org, dirs, pw, thit, prim, face_normal, fac
 
 @njit(cache=True, nogil=True)
 def _trace_fused(cdata, key, path0, n, cdf, p0, e1, e2, normal, power, eps, face_normal,
-                 face_p0, albedo, specular, exponent, emitter, max_bounces, rr_start, glossy, slots, counts, vpos,
+                 face_p0, albedo, tex, specular, exponent, emitter, max_bounces, rr_start, glossy, slots, counts, vpos,
                  vnrm, vint, tasks):
     """Whole paths path0 .. path0 + n - 1 with per-ray calls of the caster (its data ``cdata``,
     lightcuts.accel.kernel_api): one thread's share, chunks of _FUSED_CHUNK paths taken from the
@@ -234,7 +235,7 @@ def _trace_fused(cdata, key, path0, n, cdf, p0, e1, e2, normal, power, eps, face
             for bounce in range(1, max_bounces + 1):
                 thit, f = intersect(cdata, buf, ox, oy, oz, dx, dy, dz, 0.0, np.inf)
                 res = _scatter(key, bounce, path, ox, oy, oz, dx, dy, dz, pr, pg, pb, thit, f, face_normal, face_p0,
-                               albedo, specular, exponent, emitter, max_bounces, rr_start, glossy)
+                               albedo, tex, specular, exponent, emitter, max_bounces, rr_start, glossy)
                 status = res[0]
                 if status == 0:
                     break
@@ -299,7 +300,7 @@ def _trace(scene, caster, emitters, key, n_paths, max_bounces, rr_start, glossy,
     ``kernel_caster``, else a wavefront over the batch API; both give the same VPLs."""
     power = emitters.unit_power / n_paths
     geometry = (np.ascontiguousarray(scene.face_normals), np.ascontiguousarray(scene.triangles[:, 0]),
-                np.ascontiguousarray(scene.albedo), np.ascontiguousarray(scene.specular, np.float64),
+                np.ascontiguousarray(scene.albedo), scene.texture_data(), np.ascontiguousarray(scene.specular, np.float64),
                 np.ascontiguousarray(scene.exponent, np.float64), np.ascontiguousarray(scene.emission.max(axis=1) > 0))
     handles = kernel_caster_of(caster, "lights.indirect")
     route = _trace_chunk_fused if handles is not None else _trace_chunk_wavefront

@@ -29,6 +29,7 @@ from lightcuts.hashing import mix64
 from lightcuts.render.cut import lightcut, luminance
 from lightcuts.render.shading import facing_normal
 from lightcuts.sampling import reflect, sample_brdf
+from lightcuts.scene.textures import albedo_at
 
 #: Path vertices after the receiver at most (Russian roulette ends nearly every path long before).
 MAX_VERTICES = 32
@@ -53,7 +54,7 @@ def path_key(seed, pixel, sample):
 
 @njit(cache=True, error_model="numpy")
 def continuation(key, x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, exponent, l1,
-                 face_normal, albedo, specular, exponents, emission, node_b, node_bi, roots, light_f, eps, max_cut,
+                 face_normal, albedo, tex, specular, exponents, emission, node_b, node_bi, roots, light_f, eps, max_cut,
                  clamp_d2, ray_offset, visibility, cdata, buf, width, pk, heap, slot_node, slot_mgv, slot_ratio,
                  lane_slot, stochastic):
     """The compensation at one receiver (module docstring): ``(L_r, L_g, L_b, rays)``, the radiance
@@ -103,7 +104,8 @@ def continuation(key, x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs
         dx0, dx1, dx2 = y0 - x0, y1 - x1, y2 - x2
         d2 = dx0 * dx0 + dx1 * dx1 + dx2 * dx2
         w = 1.0 - d2 / clamp_d2 if d2 < clamp_d2 else 0.0
-        wd0, wd1, wd2 = w * albedo[prim, 0], w * albedo[prim, 1], w * albedo[prim, 2]
+        al0, al1, al2 = albedo_at(albedo, tex, prim, y0, y1, y2)
+        wd0, wd1, wd2 = w * al0, w * al1, w * al2
         ws0, ws1, ws2 = specular[prim, 0], specular[prim, 1], specular[prim, 2]
         e = exponents[prim]
         if max(wd0, wd1, wd2) + max(ws0, ws1, ws2) <= 0.0:

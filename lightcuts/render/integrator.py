@@ -54,6 +54,7 @@ from lightcuts.render.cut import lightcut, luminance
 from lightcuts.render.forest import build_forest
 from lightcuts.render.reference import all_lights
 from lightcuts.render.shading import facing_normal, reflect
+from lightcuts.scene.textures import albedo_at
 
 #: Shadow-ray origin offset (and gap before a light), as a fraction of the scene's size or its
 #: distance from the origin, whichever is larger: Embree works in float32 (7 digits), so this is
@@ -100,7 +101,7 @@ class RenderResult:
 
 @njit(cache=True, error_model="numpy")
 def _render_pixel(cdata, width, cam, seed, spp, sx, sy, px, py,
-                  face_normal, albedo, specular, exponent, emission, node_b, node_bi, roots, light_f, light_i,
+                  face_normal, albedo, tex, specular, exponent, emission, node_b, node_bi, roots, light_f, light_i,
                   env_pixels, env_rotation, env_scale, eps, max_cut, clamp_d2, ray_offset, visibility, reference,
                   compensation, stochastic, buf, pk, heap, slot_node, slot_mgv, slot_ratio, lane_slot):
     """All eye rays of pixel (px, py): returns (L_r, L_g, L_b, cut, shadow_rays, clamp_lost), cut
@@ -137,7 +138,7 @@ def _render_pixel(cdata, width, cam, seed, spp, sx, sy, px, py,
         p0, p1, p2 = o0 + t * d0, o1 + t * d1, o2 + t * d2
         n0, n1, n2 = facing_normal(f0, f1, f2, -d0, -d1, -d2)
         r0, r1, r2 = reflect(-d0, -d1, -d2, n0, n1, n2)
-        rd0, rd1, rd2 = albedo[prim, 0], albedo[prim, 1], albedo[prim, 2]
+        rd0, rd1, rd2 = albedo_at(albedo, tex, prim, p0, p1, p2)
         rs0, rs1, rs2 = specular[prim, 0], specular[prim, 1], specular[prim, 2]
         if reference:
             res = all_lights(p0, p1, p2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, exponent[prim],
@@ -152,7 +153,7 @@ def _render_pixel(cdata, width, cam, seed, spp, sx, sy, px, py,
             for i in range(compensation):
                 ckey = key if i == 0 else mix64(key ^ np.uint64(i)) | np.uint64(1)
                 c = continuation(ckey, p0, p1, p2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2,
-                                 exponent[prim], luminance(res[0], res[1], res[2]), face_normal, albedo, specular,
+                                 exponent[prim], luminance(res[0], res[1], res[2]), face_normal, albedo, tex, specular,
                                  exponent, emission, node_b, node_bi, roots, light_f, eps, max_cut, clamp_d2,
                                  ray_offset, visibility, cdata, buf, width, pk, heap, slot_node, slot_mgv,
                                  slot_ratio, lane_slot, stochastic)
@@ -170,7 +171,7 @@ def _render_pixel(cdata, width, cam, seed, spp, sx, sy, px, py,
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _render_band(cdata, width, cam, seed, spp, sx, sy, x0, x1, y0, y1, face_normal, albedo, specular, exponent,
+def _render_band(cdata, width, cam, seed, spp, sx, sy, x0, x1, y0, y1, face_normal, albedo, tex, specular, exponent,
                  emission, node_b, node_bi, roots, light_f, light_i, env_pixels, env_rotation, env_scale, eps,
                  max_cut, clamp_d2, ray_offset, visibility, reference, compensation, stochastic, pixels, out_rgb,
                  out_cut, out_rays, out_lost, tasks):
@@ -204,7 +205,7 @@ def _render_band(cdata, width, cam, seed, spp, sx, sy, x0, x1, y0, y1, face_norm
                 px, py = pixels[i, 0], pixels[i, 1]
             a0, a1, a2, cut, rays, lost = _render_pixel(
                 cdata, width, cam, seed, spp, sx, sy, px, py,
-                face_normal, albedo, specular, exponent, emission, node_b, node_bi, roots, light_f, light_i,
+                face_normal, albedo, tex, specular, exponent, emission, node_b, node_bi, roots, light_f, light_i,
                 env_pixels, env_rotation, env_scale, eps, max_cut, clamp_d2, ray_offset, visibility, reference,
                 compensation, stochastic, buf, pk, heap, slot_node, slot_mgv, slot_ratio, lane_slot)
             out_rgb[row, col, 0] = a0 / spp
@@ -290,7 +291,7 @@ def _render(scene, caster, lights, trees, camera, spp, eps, max_cut, clamp, clam
     for b0 in range(0, rows, band):
         b1 = min(rows, b0 + band)
         on_counter(_render_band, (b1 - b0) * cols, 2 * CHUNK, *kc, cam, seed, spp, sx, sy, x0, x1, y0 + b0,
-                   y0 + b1, face_normal, albedo, specular, exponent, emission, f.node_b, f.node_bi, f.roots,
+                   y0 + b1, face_normal, albedo, scene.texture_data(), specular, exponent, emission, f.node_b, f.node_bi, f.roots,
                    f.light_f, f.light_i, env_pixels, env_rotation, env_scale, float(eps), max_cut, float(clamp_d2),
                    float(ray_offset), bool(visibility), bool(reference), int(continuation_rays) if compensation and not reference else 0,
                    bool(stochastic and not reference), pix[b0:b1] if len(pix) else pix,

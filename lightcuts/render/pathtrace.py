@@ -30,6 +30,7 @@ from lightcuts.render.camera import CAM_POSITION, camera_params, check_crop, eye
 from lightcuts.render.integrator import shadow_ray_offset
 from lightcuts.render.shading import facing_normal, material_term
 from lightcuts.sampling import brdf_pdf, reflect, sample_brdf
+from lightcuts.scene.textures import albedo_at
 
 #: Vertices of a path at most (Russian roulette ends nearly all paths long before).
 MAX_VERTICES = 64
@@ -44,7 +45,7 @@ def _u(key, vertex, dim):
 
 
 @njit(cache=True, error_model="numpy")
-def _pixel(cdata, buf, cam, seed, spp, sx, sy, px, py, width, face_normal, albedo, specular, exponent, emission,
+def _pixel(cdata, buf, cam, seed, spp, sx, sy, px, py, width, face_normal, albedo, tex, specular, exponent, emission,
            em_tri, em_cdf, em_p0, em_e1, em_e2, tri_prob, face_area, offset):
     o0, o1, o2 = cam[CAM_POSITION], cam[CAM_POSITION + 1], cam[CAM_POSITION + 2]
     a0 = a1 = a2 = 0.0
@@ -76,7 +77,7 @@ def _pixel(cdata, buf, cam, seed, spp, sx, sy, px, py, width, face_normal, albed
             y0, y1, y2 = x0 + t * d0, x1 + t * d1, x2 + t * d2
             n0, n1, n2 = facing_normal(f0, f1, f2, -d0, -d1, -d2)
             r0, r1, r2 = reflect(-d0, -d1, -d2, n0, n1, n2)
-            rd0, rd1, rd2 = albedo[prim, 0], albedo[prim, 1], albedo[prim, 2]
+            rd0, rd1, rd2 = albedo_at(albedo, tex, prim, y0, y1, y2)
             rs0, rs1, rs2 = specular[prim, 0], specular[prim, 1], specular[prim, 2]
             e = exponent[prim]
             qd, qs = max(rd0, rd1, rd2), max(rs0, rs1, rs2)
@@ -128,8 +129,8 @@ def _pixel(cdata, buf, cam, seed, spp, sx, sy, px, py, width, face_normal, albed
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _trace_band(cdata, cam, seed, spp, sx, sy, x0, x1, y0, y1, width, face_normal, albedo, specular, exponent,
-                emission, em_tri, em_cdf, em_p0, em_e1, em_e2, tri_prob, face_area, offset, out, tasks):
+def _trace_band(cdata, cam, seed, spp, sx, sy, x0, x1, y0, y1, width, face_normal, albedo, tex, specular,
+                exponent, emission, em_tri, em_cdf, em_p0, em_e1, em_e2, tri_prob, face_area, offset, out, tasks):
     buf = new_scratch(cdata)
     cols = x1 - x0
     n = (y1 - y0) * cols
@@ -141,7 +142,7 @@ def _trace_band(cdata, cam, seed, spp, sx, sy, x0, x1, y0, y1, width, face_norma
             row = i // cols
             col = i - row * cols
             r, g, b = _pixel(cdata, buf, cam, seed, spp, sx, sy, x0 + col, y0 + row, width, face_normal, albedo,
-                             specular, exponent, emission, em_tri, em_cdf, em_p0, em_e1, em_e2, tri_prob, face_area,
+                             tex, specular, exponent, emission, em_tri, em_cdf, em_p0, em_e1, em_e2, tri_prob, face_area,
                              offset)
             out[row, col, 0] = r
             out[row, col, 1] = g
@@ -165,8 +166,9 @@ def path_trace(scene, caster, camera=None, spp: int = 64, seed: int = 0, crop=No
     tri_prob = np.zeros(scene.n_faces)  # the probability that next-event estimation draws a triangle
     if e.n:
         tri_prob[e.tri] = np.diff(e.cdf, prepend=0.0) / e.cdf[-1]
-    arrays = tuple(np.ascontiguousarray(a, np.float64) for a in (
+    normals, albedo, specular, exponent, emission = (np.ascontiguousarray(a, np.float64) for a in (
         scene.face_normals, scene.albedo, scene.specular, scene.exponent, scene.emission))
+    arrays = (normals, albedo, scene.texture_data(), specular, exponent, emission)
     em = (e.tri, np.ascontiguousarray(e.cdf, np.float64), e.p0, e.e1, e.e2, tri_prob,
           np.ascontiguousarray(scene.face_areas, np.float64))
     sx, sy = strata(int(spp))

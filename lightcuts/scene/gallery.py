@@ -97,8 +97,7 @@ def gallery_scene(exhibits: list[Scene], offsets: list, overrides=None, name: st
     for (x, z), mesh, (lo, hi), offset in zip(plinth_spots(len(exhibits)), exhibits, bounds, offsets):
         top = np.array([x, plinth_size(hi - lo)[1], z])
         shift = top - [0.5 * (lo[0] + hi[0]), lo[1], 0.5 * (lo[2] + hi[2])] + np.asarray(offset)
-        placed.append(Scene(mesh.vertices + shift, mesh.faces, mesh.albedo, mesh.specular, mesh.exponent,
-                            mesh.emission, name=mesh.name))
+        placed.append(mesh.translated(shift))
     return concatenate_scenes([room, *placed], camera=camera(len(exhibits)), name=name)
 
 

@@ -1,4 +1,5 @@
-"""The Scene: a triangle soup with one material per triangle, and a pinhole camera.
+"""The Scene: a triangle soup with one material per triangle (an albedo texture optional), and a
+pinhole camera.
 
 Structure of arrays, like trimesh's ``Trimesh``: every per-triangle quantity is a flat numpy array
 indexed by triangle id (the ``primID`` Embree returns).
@@ -13,6 +14,7 @@ import numpy as np
 
 from lightcuts.errors import LightcutsError
 from lightcuts.io import save_npz
+from lightcuts.scene.textures import TextureSet, empty_kernel_data, uv_maps
 
 
 @dataclass
@@ -71,6 +73,10 @@ class Scene:
         triangle's normal; 0 = not an emitter
     camera : Camera or None
     name : str
+    uv : (F, 3, 2) float64, the corners' texture coordinates, or None without textures
+    texture : (F,) int32, the triangle's albedo texture in ``textures`` (-1: none), or None
+    textures : lightcuts.scene.textures.TextureSet or None; a textured triangle's albedo is
+        ``albedo[f]`` times the texture at the point (lightcuts.scene.textures)
     """
 
     vertices: np.ndarray
@@ -81,6 +87,9 @@ class Scene:
     emission: np.ndarray
     camera: Camera | None = None
     name: str = "scene"
+    uv: np.ndarray | None = None
+    texture: np.ndarray | None = None
+    textures: TextureSet | None = None
     _cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     def __post_init__(self):
@@ -91,6 +100,35 @@ class Scene:
         self.specular = np.ascontiguousarray(np.broadcast_to(self.specular, (nf, 3)), np.float64)
         self.exponent = np.ascontiguousarray(np.broadcast_to(self.exponent, (nf,)), np.float64)
         self.emission = np.ascontiguousarray(np.broadcast_to(self.emission, (nf, 3)), np.float64)
+        if self.texture is None or self.textures is None or len(self.textures) == 0 \
+                or not np.any(np.asarray(self.texture) >= 0):
+            self.uv, self.texture, self.textures = None, None, None
+        else:
+            self.texture = np.ascontiguousarray(self.texture, np.int32).reshape(nf)
+            self.uv = np.ascontiguousarray(self.uv, np.float64).reshape(nf, 3, 2)
+            if self.texture.max() >= len(self.textures):
+                raise ValueError(f"texture ids up to {self.texture.max()}, but {len(self.textures)} textures")
+
+    @property
+    def textured(self) -> bool:
+        """Whether some triangle has an albedo texture."""
+        return self.textures is not None
+
+    def texture_data(self):
+        """The texture tuple kernels take (lightcuts.scene.textures.albedo_at): the per-triangle
+        texture ids, uv maps, texels and image table; all empty without textures."""
+        if "texture_data" not in self._cache:
+            if not self.textured:
+                self._cache["texture_data"] = empty_kernel_data()
+            else:
+                self._cache["texture_data"] = (self.texture, uv_maps(self.vertices, self.faces, self.uv),
+                                               self.textures.texels, self.textures.table)
+        return self._cache["texture_data"]
+
+    def translated(self, shift) -> "Scene":
+        """The same scene moved by ``shift`` (3,) world units (materials and textures kept)."""
+        return Scene(self.vertices + np.asarray(shift, np.float64), self.faces, self.albedo, self.specular,
+                     self.exponent, self.emission, self.camera, self.name, self.uv, self.texture, self.textures)
 
     @property
     def n_faces(self) -> int:
@@ -142,6 +180,9 @@ class Scene:
                       exponent=self.exponent, emission=self.emission, name=np.array(self.name))
         if self.camera is not None:
             arrays["camera"] = self.camera.as_array()
+        if self.textured:
+            arrays.update(uv=self.uv, texture=self.texture, texels=self.textures.texels,
+                          texture_table=self.textures.table, texture_names=np.array(self.textures.names))
         return save_npz(path, **arrays)
 
     @classmethod
@@ -149,7 +190,11 @@ class Scene:
         try:
             with np.load(path, allow_pickle=False) as z:
                 cam = Camera.from_array(z["camera"]) if "camera" in z else None
+                tex = {}
+                if "texture" in z:
+                    tex = dict(uv=z["uv"], texture=z["texture"], textures=TextureSet(
+                        z["texels"], z["texture_table"], list(z["texture_names"])))
                 return cls(z["vertices"], z["faces"], z["albedo"], z["specular"], z["exponent"],
-                           z["emission"], cam, str(z["name"]))
+                           z["emission"], cam, str(z["name"]), **tex)
         except (OSError, KeyError, ValueError) as exc:
             raise LightcutsError(f"{path}: not a lightcuts scene file ({exc})") from None

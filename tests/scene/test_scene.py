@@ -354,7 +354,7 @@ def _glb_scene():
     """Two instances of a unit box (one translated, one mirrored) plus a lamp triangle."""
     box = trimesh.creation.box()
     box.visual = trimesh.visual.TextureVisuals(
-        material=PBRMaterial(baseColorFactor=[0.6, 0.4, 0.2, 1.0]))
+        material=PBRMaterial(baseColorFactor=[0.6, 0.4, 0.2, 1.0], metallicFactor=0.0, roughnessFactor=1.0))
     lamp = trimesh.Trimesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]], process=False)
     lamp.visual = trimesh.visual.TextureVisuals(material=PBRMaterial(emissiveFactor=[1.0, 0.5, 0.25]))
     sc = trimesh.Scene()
@@ -390,8 +390,14 @@ def test_gltf_bakes_node_transforms_and_reads_materials(tmp_path, ext):
     for sel, centre in ((moved, [10, 0, 100]), (mirrored, [-10, 0, 100])):
         out = np.einsum("ij,ij->i", c[sel] - centre, s.face_normals[sel])
         assert np.all(out > 0)
-    # baseColorFactor goes through trimesh as 8-bit RGBA.
-    np.testing.assert_allclose(s.albedo[moved | mirrored], [[0.6, 0.4, 0.2]] * 24, atol=0.5 / 255)
+    # baseColorFactor goes through trimesh as 8-bit RGBA; a dielectric (metallic 0) keeps 0.96 of it
+    # as diffuse albedo and reflects 0.04 in a Phong lobe, here of exponent 0 (roughness 1).
+    np.testing.assert_allclose(s.albedo[moved | mirrored], [[0.576, 0.384, 0.192]] * 24, atol=0.5 / 255)
+    np.testing.assert_allclose(s.specular[moved | mirrored], 0.04)
+    assert np.all(s.exponent[moved | mirrored] == 0)
+    # the lamp's material gives no metallicFactor: glTF's default 1, a metal of base colour 1
+    np.testing.assert_allclose(s.albedo[lamp], 0.0)
+    np.testing.assert_allclose(s.specular[lamp], 1.0)
     np.testing.assert_allclose(s.emission[lamp], [[1.0, 0.5, 0.25]])
     assert np.all(s.emission[~lamp] == 0)
     s = load_mesh(p, material={"albedo": [0.1, 0.1, 0.1]})

@@ -17,19 +17,20 @@ from lightcuts.accel.kernel_api import intersect
 from lightcuts.lights.environment import envmap_radiance
 from lightcuts.render.camera import lens_ray
 from lightcuts.render.shading import facing_normal, reflect
+from lightcuts.scene.textures import albedo_at
 
 # Columns of a gather point's row: position, normal, mirror direction, rho_d, rho_s, exponent, weight.
 GP_POS, GP_NRM, GP_REFL, GP_RD, GP_RS, GP_EXP, GP_W, GP_WIDTH = 0, 3, 6, 9, 12, 15, 16, 17
 
 
 @njit(cache=True, error_model="numpy")
-def pixel_gather(cdata, buf, cam, seed, spp, sx, sy, px, py, aperture, focus, face_normal, albedo, specular,
-                 exponent, emission, env_pixels, env_rotation, env_scale, gp):
+def pixel_gather(cdata, buf, cam, seed, spp, sx, sy, px, py, aperture, focus, face_normal, albedo, tex,
+                 specular, exponent, emission, env_pixels, env_rotation, env_scale, gp):
     """Cast pixel (px, py)'s eye rays and fill gp's first rows with its gather points.
 
     cam, seed, spp, sx, sy : as lightcuts.render.camera.eye_ray; aperture, focus : the thin lens
     (lightcuts.render.camera.lens_ray, 0: pinhole); face_normal, albedo, specular, exponent,
-    emission : the scene's per-triangle arrays; env_* : the environment map ((0, 0, 3): none).
+    emission : the scene's per-triangle arrays, tex its textures (lightcuts.scene.textures.albedo_at); env_* : the environment map ((0, 0, 3): none).
     Returns ``(n, r, g, b)``: the number of gather points and the radiance added directly, summed
     over the eye rays (not yet divided by spp).
     """
@@ -62,8 +63,9 @@ def pixel_gather(cdata, buf, cam, seed, spp, sx, sy, px, py, aperture, focus, fa
         row[GP_POS], row[GP_POS + 1], row[GP_POS + 2] = o0 + t * d0, o1 + t * d1, o2 + t * d2
         row[GP_NRM], row[GP_NRM + 1], row[GP_NRM + 2] = n0, n1, n2
         row[GP_REFL], row[GP_REFL + 1], row[GP_REFL + 2] = r0, r1, r2
+        row[GP_RD], row[GP_RD + 1], row[GP_RD + 2] = albedo_at(albedo, tex, prim, o0 + t * d0, o1 + t * d1,
+                                                               o2 + t * d2)
         for c in range(3):
-            row[GP_RD + c] = albedo[prim, c]
             row[GP_RS + c] = specular[prim, c]
         row[GP_EXP] = exponent[prim]
         row[GP_W] = w

@@ -33,7 +33,7 @@ from lightcuts.render.multidim.product_cut import all_pairs, light_representativ
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _render_band(cdata, cam, seed, spp, sx, sy, aperture, focus, x0, x1, y0, y1, face_normal, albedo, specular,
+def _render_band(cdata, cam, seed, spp, sx, sy, aperture, focus, x0, x1, y0, y1, face_normal, albedo, tex, specular,
                  exponent, emission, node_b, node_bi, roots, light_f, light_i, lreps, g_count, env_pixels, env_rotation,
                  env_scale, eps, max_cut, clamp_d2, ray_offset, visibility, reference, pixels, out_rgb, out_cut,
                  out_rays, out_lost, tasks):
@@ -68,7 +68,7 @@ def _render_band(cdata, cam, seed, spp, sx, sy, aperture, focus, x0, x1, y0, y1,
             if pixels.shape[0] > 0:
                 px, py = pixels[i, 0], pixels[i, 1]
             ng, a0, a1, a2 = pixel_gather(cdata, buf, cam, seed, spp, sx, sy, px, py, aperture, focus, face_normal,
-                                          albedo, specular, exponent, emission, env_pixels, env_rotation, env_scale,
+                                          albedo, tex, specular, exponent, emission, env_pixels, env_rotation, env_scale,
                                           gp)
             a0 /= spp
             a1 /= spp
@@ -192,7 +192,7 @@ def render_multidimensional(scene, caster, lights: dict, trees: dict | None, cam
     for b0 in range(0, rows, band):
         b1 = min(rows, b0 + band)
         on_counter(_render_band, (b1 - b0) * cols, 2 * CHUNK, cdata, cam, seed, spp, sx, sy, float(aperture), focus,
-                   x0, x1, y0 + b0, y0 + b1, face_normal, albedo, specular, exponent, emission, f.node_b, f.node_bi,
+                   x0, x1, y0 + b0, y0 + b1, face_normal, albedo, scene.texture_data(), specular, exponent, emission, f.node_b, f.node_bi,
                    f.roots, f.light_f, f.light_i, lreps, int(gather_representatives), env_pixels, env_rotation,
                    env_scale, float(eps), pair_budget,
                    float(clamp_d2), float(shadow_ray_offset(scene)), bool(visibility), bool(reference),
