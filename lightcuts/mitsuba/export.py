@@ -2,8 +2,13 @@ r"""A lightcuts Scene (camera, sun and environment map included) as a Mitsuba 3 
 
 :func:`scene_dict` returns the dict for ``mi.load_dict``; every quantity keeps its lightcuts meaning:
 
-* Meshes: one ``mi.Mesh`` per material group (triangles with equal albedo, specular, exponent and
-  emission), built from the Scene's arrays (flat shading, face normals by the right-hand rule).
+* Meshes: one ``mi.Mesh`` per material group (triangles with equal albedo, specular, exponent,
+  emission and texture), built from the Scene's arrays (flat shading, face normals by the
+  right-hand rule); a textured group's mesh has its corners' texture coordinates, v flipped to
+  Mitsuba's convention (v = 0 at the image's top row).
+* Textures: the diffuse reflectance of a textured group is a ``bitmap`` of the linear texels times
+  the group's albedo (times the blend's diffuse scale below), ``raw`` (no further colour
+  conversion), bilinear and repeating, as lightcuts filters it.
 * Materials: lightcuts shades both sides of a surface, so every non-emitting group's BSDF is wrapped
   in ``twosided``. Diffuse (``rho_s = 0``) is Mitsuba's ``diffuse`` with reflectance ``rho_d``, exact.
   Phong (``f = rho_d / pi + rho_s (n + 2) / (2 pi) cos^n(alpha)``, alpha from the mirror direction;
@@ -61,14 +66,15 @@ def phong_alpha(exponent: float) -> float:
     return math.sqrt(1.0 / (2.0 * float(exponent) + 1.0))
 
 
-def phong_bsdf(albedo, specular, exponent: float) -> dict:
+def phong_bsdf(albedo, specular, exponent: float, texture: np.ndarray | None = None) -> dict:
     """Mitsuba BSDF dict (one-sided) for lightcuts' Lambert + Phong material (module docstring).
 
-    albedo, specular : (3,) rho_d, rho_s; exponent : Phong n >= 0.
+    albedo, specular : (3,) rho_d, rho_s; exponent : Phong n >= 0; texture : (H, W, 3) linear
+    texels multiplying rho_d, or None.
     """
     rd = np.clip(np.asarray(albedo, np.float64), 0.0, None)
     rs = np.clip(np.asarray(specular, np.float64), 0.0, None)
-    diffuse = {"type": "diffuse", "reflectance": _rgb(np.minimum(rd, 1.0))}
+    diffuse = {"type": "diffuse", "reflectance": _reflectance(np.minimum(rd, 1.0), texture)}
     if rs.max() <= 0.0:
         return diffuse
     md, ms = float(rd.max()), float(rs.max())
@@ -77,7 +83,7 @@ def phong_bsdf(albedo, specular, exponent: float) -> dict:
     if md <= 0.0:
         return {**glossy, "specular_reflectance": _rgb(np.minimum(rs, 1.0))}
     w = ms / (ms + md)
-    diffuse["reflectance"] = _rgb(np.minimum(rd / (1.0 - w), 1.0))
+    diffuse["reflectance"] = _reflectance(rd / (1.0 - w), texture)
     glossy["specular_reflectance"] = _rgb(np.minimum(rs / w, 1.0))
     return {"type": "blendbsdf", "weight": w, "bsdf_0": diffuse, "bsdf_1": glossy}
 
@@ -86,28 +92,50 @@ def _rgb(v) -> dict:
     return {"type": "rgb", "value": [float(x) for x in v]}
 
 
+def _reflectance(rd, texture) -> dict:
+    """``rd`` (3,) as an rgb value, or the texture times ``rd`` as a bitmap, each clipped to 1."""
+    if texture is None:
+        return _rgb(np.minimum(rd, 1.0))
+    mi = load_mitsuba()
+    texels = np.clip(np.asarray(texture, np.float64) * rd, 0.0, 1.0).astype(np.float32)
+    return {"type": "bitmap", "bitmap": mi.Bitmap(np.ascontiguousarray(texels)), "raw": True,
+            "filter_type": "bilinear", "wrap_mode": "repeat"}
+
+
 def material_groups(scene) -> list[np.ndarray]:
-    """Triangle ids (int64 arrays) of each distinct (albedo, specular, exponent, emission), in order
-    of first appearance."""
-    key = np.concatenate([scene.albedo, scene.specular, scene.exponent[:, None], scene.emission], axis=1)
+    """Triangle ids (int64 arrays) of each distinct (albedo, specular, exponent, emission, texture),
+    in order of first appearance."""
+    texture = scene.texture if scene.textured else np.full(scene.n_faces, -1)
+    key = np.concatenate([scene.albedo, scene.specular, scene.exponent[:, None], scene.emission,
+                          texture[:, None]], axis=1)
     _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
     inverse = inverse.reshape(-1)
     order = np.argsort(first)
     return [np.flatnonzero(inverse == g) for g in order]
 
 
-def _mesh(mi, name: str, vertices: np.ndarray, faces: np.ndarray, bsdf: dict, emission=None):
-    """One mi.Mesh over the vertices the faces use, with its BSDF and an area emitter if emissive."""
-    used, local = np.unique(faces, return_inverse=True)
+def _mesh(mi, name: str, vertices: np.ndarray, faces: np.ndarray, bsdf: dict, emission=None, uv=None):
+    """One mi.Mesh over the vertices the faces use, with its BSDF and an area emitter if emissive;
+    with ``uv`` (F, 3, 2) (lightcuts' convention) every corner gets its own vertex and texcoord."""
+    if uv is None:
+        used, local = np.unique(faces, return_inverse=True)
+        positions = vertices[used]
+    else:
+        positions = vertices[faces].reshape(-1, 3)
+        local = np.arange(positions.shape[0])
     props = mi.Properties()
     props["bsdf"] = mi.load_dict(bsdf)
     if emission is not None:
         props["emitter"] = mi.load_dict({"type": "area", "radiance": _rgb(emission)})
-    mesh = mi.Mesh(name, vertex_count=len(used), face_count=len(faces), props=props,
-                   has_vertex_normals=False, has_vertex_texcoords=False)
+    mesh = mi.Mesh(name, vertex_count=len(positions), face_count=len(faces), props=props,
+                   has_vertex_normals=False, has_vertex_texcoords=uv is not None)
     params = mi.traverse(mesh)
-    params["vertex_positions"] = np.ascontiguousarray(vertices[used], np.float32).ravel()
+    params["vertex_positions"] = np.ascontiguousarray(positions, np.float32).ravel()
     params["faces"] = np.ascontiguousarray(local.reshape(-1, 3), np.uint32).ravel()
+    if uv is not None:
+        tc = np.asarray(uv, np.float64).reshape(-1, 2).copy()
+        tc[:, 1] = 1.0 - tc[:, 1]
+        params["vertex_texcoords"] = np.ascontiguousarray(tc, np.float32).ravel()
     params.update()
     return mesh
 
@@ -185,12 +213,14 @@ def scene_dict(scene, envmap=None, sun=None, *, spp: int = 16, integrator: str =
     for g, ids in enumerate(material_groups(scene)):
         f = ids[0]
         emission = scene.emission[f]
-        bsdf = phong_bsdf(scene.albedo[f], scene.specular[f], scene.exponent[f])
+        k = int(scene.texture[f]) if scene.textured else -1
+        bsdf = phong_bsdf(scene.albedo[f], scene.specular[f], scene.exponent[f],
+                          scene.textures.image(k) if k >= 0 else None)
         emissive = bool(emission.max() > 0)
         if not emissive:
             bsdf = {"type": "twosided", "bsdf": bsdf}
         out[f"mesh_{g:04d}"] = _mesh(mi, f"mesh_{g:04d}", scene.vertices, scene.faces[ids], bsdf,
-                                     emission if emissive else None)
+                                     emission if emissive else None, scene.uv[ids] if k >= 0 else None)
     if sun is not None:
         d = np.asarray(sun.direction, np.float64)
         d = d / np.linalg.norm(d)

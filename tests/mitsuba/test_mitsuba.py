@@ -294,3 +294,41 @@ def test_lightcuts_does_not_import_mitsuba_until_used():
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
     assert r.returncode == 0 and r.stdout.split() == ["False", "False"], r.stderr
+
+
+def test_a_textured_quad_renders_as_in_mitsuba(mi, tmp_path):
+    """The checkerboard quad of tests/scene/test_textures.py (one square odd) under a sun: Mitsuba's
+    image (bitmap texture, flipped v) matches lightcuts' per 8 x 8 block, so every square lands
+    where lightcuts puts it, with its value."""
+    from PIL import Image
+
+    from lightcuts.mitsuba.render import render_mitsuba
+    from lightcuts.scene.build import scene_from_config
+    import lightcuts
+
+    i = np.arange(32) // 8
+    tex = np.where(((i[:, None] + i[None, :]) % 2 == 0)[:, :, None], np.array([200, 50, 50], np.uint8),
+                   np.array([30, 120, 220], np.uint8)).astype(np.uint8)
+    tex[:8, :8] = [250, 250, 40]  # one square unlike the others: a flip or a mirror shows
+    Image.fromarray(tex).save(tmp_path / "tex.png")
+    (tmp_path / "quad.obj").write_text(
+        "mtllib quad.mtl\nv -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"
+        "usemtl m\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n")
+    (tmp_path / "quad.mtl").write_text("newmtl m\nKd 0.7 0.8 0.9\nmap_Kd tex.png\n")
+    (tmp_path / "run.yaml").write_text(
+        "scene: {meshes: [{file: quad.obj}]}\n"
+        "camera: {position: [0, 0, 3], look_at: [0, 0, 0], up: [0, 1, 0], fov: 30, resolution: [32, 32]}\n"
+        "lights: {sun: {direction: [0, 0.3, 1], irradiance: [3, 3, 3]}}\n")
+    cfg = lightcuts.load_config(tmp_path / "run.yaml")
+    ours = lightcuts.render(cfg, progress=False).image.astype(np.float64)
+    theirs, _ = render_mitsuba(cfg, scene_from_config(cfg), None, spp=64, integrator="direct")
+    # pixel centres' texture coordinates; compare the pixels a texel and a half away from any square's edge
+    t = 3 * math.tan(math.radians(15))
+    c = (2 * (np.arange(32) + 0.5) / 32 - 1) * t
+    u, v = np.meshgrid((c + 1) / 2, (1 - c) / 2)  # image rows run down, v up
+    frac = lambda x: np.abs((4 * x) - np.round(4 * x)) / 4  # noqa: E731
+    inside = (frac(u) > 1.5 / 32) & (frac(v) > 1.5 / 32)
+    assert inside.sum() > 300
+    np.testing.assert_allclose(theirs[inside], ours[inside], rtol=0.02)
+    odd = inside & (u < 0.25) & (v > 0.75)  # the odd square is at the texture's top left
+    assert odd.sum() > 0 and np.all(ours[odd, 2] < 0.1)

@@ -271,3 +271,46 @@ def test_a_gltf_renders_like_its_obj_mtl_equivalent(tmp_path):
     assert a.mean() > 0.01
     # the same triangles in the same order, so the same lights and trees: equal but for float rounding
     np.testing.assert_allclose(a, b, rtol=1e-4, atol=1e-7)
+
+
+@pytest.mark.parametrize("render", [{"render.compensation": True, "render.clamp.enabled": True,
+                                     "render.clamp.min_distance": 0.3}, {"render.integrator": "multidimensional"},
+                                    "path_trace"])
+def test_a_one_colour_texture_is_the_same_as_that_albedo_everywhere(tmp_path, render):
+    """Every kernel that reads an albedo (eye hits, VPL colours in the particle tracer, continuation
+    hits, gather points, the path tracer) reads the texture: a floor textured in one colour c with
+    Kd 1 renders as the floor of albedo c, to float rounding."""
+    from lightcuts.accel import make_caster
+    from lightcuts.render.pathtrace import path_trace
+    from lightcuts.scene.build import scene_from_config
+
+    walls, floor, lamp = _room_parts()
+    c = image_to_linear(np.array([[[180, 90, 40]]], np.uint8))[0, 0].astype(np.float64).tolist()
+    for name, m in (("walls", walls), ("lamp", lamp)):
+        m.export(tmp_path / f"{name}.obj")
+    (tmp_path / "floor.obj").write_text(
+        "mtllib floor.mtl\n" + "".join(f"v {x!r} {y!r} {z!r}\n" for x, y, z in floor.vertices.tolist())
+        + "vt 0.3 0.7\n" + "usemtl m\n" + "".join(f"f {a}/1 {b}/1 {d}/1\n" for a, b, d in (floor.faces + 1).tolist()))
+    Image.fromarray(np.full((2, 2, 3), [180, 90, 40], np.uint8)).save(tmp_path / "flat.png")
+    (tmp_path / "floor.mtl").write_text("newmtl m\nKd 1 1 1\nmap_Kd flat.png\n")
+    (tmp_path / "plain.mtl").write_text(f"newmtl m\nKd {c[0]!r} {c[1]!r} {c[2]!r}\n")
+    (tmp_path / "plain.obj").write_text((tmp_path / "floor.obj").read_text().replace("floor.mtl", "plain.mtl"))
+    lamp_entry = "{file: lamp.obj, material: {albedo: [0, 0, 0], emission: [4, 4, 4]}}"
+    wall_entry = "{file: walls.obj, material: {albedo: [0.6, 0.6, 0.6], specular: [0.2, 0.2, 0.2], exponent: 20}}"
+    images = []
+    for floor_file in ("floor.obj", "plain.obj"):
+        (tmp_path / "run.yaml").write_text(
+            f"scene: {{meshes: [{wall_entry}, {{file: {floor_file}}}, {lamp_entry}]}}\n")
+        cfg = lightcuts.load_config(tmp_path / "run.yaml", **{
+            "camera.position": [0, 2.6, 1.9], "camera.look_at": [0, 0, 0], "camera.resolution": [16, 16],
+            "camera.fov": 80, "lights.direct.count": 256, "lights.indirect.count": 1000, "render.eps": 0.01,
+            **(render if isinstance(render, dict) else {})})
+        if render == "path_trace":
+            scene = scene_from_config(cfg)
+            with make_caster(scene, "embree") as caster:
+                images.append(path_trace(scene, caster, spp=8, seed=1)[0].astype(np.float64))
+        else:
+            images.append(lightcuts.render(cfg, progress=False).image.astype(np.float64))
+    a, b = images
+    assert a[10:].mean() > 0.01  # the floor, seen in the lower rows
+    np.testing.assert_allclose(a, b, rtol=1e-4, atol=1e-7)
