@@ -362,6 +362,9 @@ def test_forest_packs_every_tree_consistently():
 
 
 def test_warm_kernels_compiles_the_specialisation_renders_use(cornell):
+    from lightcuts.scene.scene import Scene
+    from lightcuts.scene.textures import TextureSet
+
     # lightcuts.commands.warmup compiles the render kernel in a child process through warm_kernels
     # (no lights, another scene): the real renders must then find that very specialisation in the cache.
     from lightcuts.commands.warmup import is_cached
@@ -372,6 +375,13 @@ def test_warm_kernels_compiles_the_specialisation_renders_use(cornell):
     n = len(_render_band.signatures)   # other casters rendered earlier in this process have their own
     render_image(scene, caster, lights, trees, crop=(0, 0, 2, 2))
     render_reference(scene, caster, lights, crop=(0, 0, 2, 2))
+    # a textured scene too (lightcuts.scene.textures: the same array types, now not empty)
+    ts = TextureSet()
+    ts.add(np.full((4, 4, 3), 0.5, np.float32), "grey")
+    textured = Scene(scene.vertices, scene.faces, scene.albedo, scene.specular, scene.exponent, scene.emission,
+                     scene.camera, uv=np.zeros((scene.n_faces, 3, 2)), texture=np.zeros(scene.n_faces),
+                     textures=ts)
+    render_image(textured, caster, lights, trees, crop=(0, 0, 2, 2))
     assert len(_render_band.signatures) == n
     assert sum("lightcuts.embree" in str(sig[0]) for sig in _render_band.signatures) == 1
     assert is_cached(_render_band)
