@@ -348,16 +348,25 @@ def _apply_override(data: dict, assignment: str, source: str) -> None:
 
 def set_key(data: dict, key: str, value, prefix: str = "") -> None:
     """Set the dotted ``key`` (e.g. ``render.eps``) of a raw config dict to ``value``, making the
-    sections on the way; LightcutsError ``<prefix><key>: <section> is not a section``."""
+    sections on the way; a number after a list names its entry (``scene.meshes.0.file``).
+    LightcutsError ``<prefix><key>: <section> is not a section`` (or the index is out of range)."""
     parts = key.strip().split(".")
     node = data
-    for p in parts[:-1]:
-        if node.get(p) is None:
+    for i, p in enumerate(parts):
+        last = i == len(parts) - 1
+        if isinstance(node, list):
+            if not p.isdigit() or int(p) >= len(node):
+                raise LightcutsError(f"{prefix}{key}: {'.'.join(parts[:i])} has {len(node)} entries, "
+                                     f"{p!r} is not one of their indices")
+            p = int(p)
+        elif not isinstance(node, dict):
+            raise LightcutsError(f"{prefix}{key}: {parts[i - 1]} is not a section")
+        elif not last and node.get(p) is None:
             node[p] = {}
-        node = node[p]
-        if not isinstance(node, dict):
-            raise LightcutsError(f"{prefix}{key}: {p} is not a section")
-    node[parts[-1]] = value
+        if last:
+            node[p] = value
+        else:
+            node = node[p]
 
 
 def check_files(cfg: RunConfig, source: str) -> None:

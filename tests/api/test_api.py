@@ -91,6 +91,19 @@ def test_overrides_dotted_and_double_underscore():
         lightcuts.load_config(CORNELL, **{"render.eps.x": 1})
 
 
+def test_overrides_index_list_entries(tmp_path):
+    (tmp_path / "m.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    (tmp_path / "run.yaml").write_text("scene: {meshes: [{file: m.obj}, {file: m.obj, scale: 2}]}\n")
+    cfg = lightcuts.load_config(tmp_path / "run.yaml", **{"scene.meshes.1.scale": 3, "scene.meshes.0.rotate": [0, 90, 0]})
+    assert cfg.scene.meshes[1].scale == 3 and cfg.scene.meshes[0].rotate == [0, 90, 0]
+    assert cfg.scene.meshes[0].scale == 1
+    for key in ("scene.meshes.2.file", "scene.meshes.x.file"):
+        with pytest.raises(LightcutsError, match=r"scene.meshes has 2 entries, '(2|x)' is not one of their indices"):
+            lightcuts.load_config(tmp_path / "run.yaml", **{key: "m.obj"})
+    with pytest.raises(LightcutsError, match=r"scene.meshes.0.file.x: file is not a section"):
+        lightcuts.load_config(tmp_path / "run.yaml", **{"scene.meshes.0.file.x": 1})
+
+
 def test_compare_rows_are_the_csv_rows(tmp_path):
     cfg = lightcuts.load_config(CORNELL, **{**SMALL, "camera.resolution": [24, 24]})
     c = lightcuts.compare(cfg, builders=["divisive-6d", "divisive-3d"], pixels=32, progress=False)
