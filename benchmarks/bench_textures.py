@@ -1,12 +1,13 @@
 """What albedo textures cost: a scene rendered with and without textures on every material.
 
-The textured copy of a mesh: its OBJ beside a copy of its MTL in which every material gets a
-``map_Kd`` of its own, a generated ``--texture-size`` square PNG (seeded value noise, sRGB codes 150 to
-255: a stone-like pattern that moves every lookup across texels). Both versions render the same
-config (``lightcuts.render``), interleaved untextured / textured ``--repeats`` times; per version the
-medians of the report's preprocess (scene, caster, lights: the particle tracer reads textures),
-build and render seconds, and the image's mean luminance. Prints a table and writes
-``benchmarks/results/textures.csv``.
+The textured copies of a mesh: its OBJ beside a copy of its MTL in which every material gets a
+``map_Kd`` of its own, a generated ``--texture-size`` square PNG: ``white`` (every texel 1, so the
+image, the lights and the cuts are the untextured ones and the difference is the lookups alone) and
+``noise`` (seeded value noise, sRGB codes 150 to 255: a stone-like pattern, darker, so its lights and
+cuts differ too). The versions render the same config (``lightcuts.render``), interleaved
+``--repeats`` times; per version the medians of the report's preprocess (scene with its images,
+caster, lights: the particle tracer reads textures), build and render seconds, the mean cut and the
+image's mean luminance. Prints a table and writes ``benchmarks/results/textures.csv``.
 
     PYTHONPATH=. python benchmarks/bench_textures.py benchmarks/scenes/sibenik.yaml
 """
@@ -26,8 +27,11 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 
-def noise_texture(rng, size: int) -> np.ndarray:
-    """(size, size, 3) uint8: bilinearly upsampled 16 x 16 random codes in [150, 255], tinted."""
+def noise_texture(rng, size: int, white: bool = False) -> np.ndarray:
+    """(size, size, 3) uint8: bilinearly upsampled 16 x 16 random codes in [150, 255], tinted (all
+    255 if ``white``)."""
+    if white:
+        return np.full((size, size, 3), 255, np.uint8)
     coarse = rng.uniform(150, 255, size=(17, 17))
     x = np.linspace(0, 16, size, endpoint=False)
     i, t = x.astype(int), x - x.astype(int)
@@ -37,7 +41,7 @@ def noise_texture(rng, size: int) -> np.ndarray:
     return np.clip(grey[:, :, None] * tint, 0, 255).astype(np.uint8)
 
 
-def textured_copy(obj: Path, folder: Path, size: int, seed: int = 0) -> Path:
+def textured_copy(obj: Path, folder: Path, size: int, white: bool, seed: int = 0) -> Path:
     """The OBJ (symlinked) beside its MTL with a generated map_Kd per material; returns the OBJ's path."""
     from PIL import Image
 
@@ -51,7 +55,7 @@ def textured_copy(obj: Path, folder: Path, size: int, seed: int = 0) -> Path:
             m = re.match(r"\s*newmtl\s+(.+)", line)
             if m:
                 name = f"tex_{len(out)}.png"
-                Image.fromarray(noise_texture(rng, size)).save(folder / name)
+                Image.fromarray(noise_texture(rng, size, white)).save(folder / name)
                 out.append(f"map_Kd {name}")
         (folder / lib.strip()).write_text("\n".join(out) + "\n")
     link = folder / obj.name
@@ -75,30 +79,33 @@ def main() -> None:
     overrides = {k: yaml.safe_load(v) for k, v in (kv.split("=", 1) for kv in a.set)}
     cfg = lightcuts.load_config(a.config, **overrides)
     obj = cfg.resolve(cfg.scene.meshes[0].file)
-    rows = {"untextured": [], "textured": []}
+    rows = {"untextured": [], "white": [], "noise": []}
     with tempfile.TemporaryDirectory() as tmp:
-        textured = textured_copy(Path(obj), Path(tmp), a.texture_size)
-        versions = {"untextured": cfg,
-                    "textured": lightcuts.load_config(a.config, **{**overrides, "scene.meshes.0.file": str(textured)})}
-        lightcuts.render(versions["textured"], progress=False)  # numba's caches for both, before timing
-        lightcuts.render(versions["untextured"], progress=False)
+        versions = {"untextured": cfg}
+        for name in ("white", "noise"):
+            (Path(tmp) / name).mkdir()
+            path = textured_copy(Path(obj), Path(tmp) / name, a.texture_size, white=name == "white")
+            versions[name] = lightcuts.load_config(a.config, **{**overrides, "scene.meshes.0.file": str(path)})
+        for c in versions.values():  # numba's caches, before timing
+            lightcuts.render(c, progress=False)
         for _ in range(a.repeats):
             for name, c in versions.items():
                 r = lightcuts.render(c, progress=False)
                 rows[name].append((r.report["preprocess_seconds"], r.report["build_seconds"],
-                                   r.report["render_seconds"], float((r.image.astype(np.float64) @ LUMINANCE).mean())))
+                                   r.report["render_seconds"], r.report["cut_size_mean"],
+                                   float((r.image.astype(np.float64) @ LUMINANCE).mean())))
     table = []
     for name, runs in rows.items():
-        med = [statistics.median(x[k] for x in runs) for k in range(4)]
+        med = [statistics.median(x[k] for x in runs) for k in range(5)]
         table.append({"version": name, "preprocess_s": med[0], "build_s": med[1], "render_s": med[2],
-                      "mean_luminance": med[3], "repeats": a.repeats, "texture_size": a.texture_size})
+                      "cut_mean": med[3], "mean_luminance": med[4], "repeats": a.repeats,
+                      "texture_size": a.texture_size})
     for t in table:
         t["render_ratio"] = t["render_s"] / table[0]["render_s"]
-        t["preprocess_ratio"] = t["preprocess_s"] / table[0]["preprocess_s"]
-    print(f"{'version':<12} {'preprocess s':>12} {'build s':>8} {'render s':>9} {'render x':>9} {'mean L':>8}")
+    print(f"{'version':<12} {'preprocess s':>12} {'build s':>8} {'render s':>9} {'render x':>9} {'cut':>7} {'mean L':>8}")
     for t in table:
         print(f"{t['version']:<12} {t['preprocess_s']:12.2f} {t['build_s']:8.2f} {t['render_s']:9.2f} "
-              f"{t['render_ratio']:9.3f} {t['mean_luminance']:8.4f}")
+              f"{t['render_ratio']:9.3f} {t['cut_mean']:7.1f} {t['mean_luminance']:8.4f}")
     save_csv(ROOT / "benchmarks" / "results" / "textures.csv", table)
 
 

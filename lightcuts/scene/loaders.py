@@ -421,8 +421,7 @@ def load_mesh(path, scale: float | Sequence[float] = 1.0, rotate: Sequence[float
                                      f"on triangles without texture coordinates")
             uv = np.asarray(vuv, np.float64)[f] * mat.uv_scale + mat.uv_offset
             if mat.emissive is not None:
-                one = TextureSet()
-                one.add(mat.emissive, "emissive")
+                one = TextureSet.of([mat.emissive], ["emissive"])
                 emission = mat.emission * face_texture_means(one, np.zeros(len(f), np.int32), uv)
                 mat = mat._replace(emission=emission, emissive=None)
                 if mat.texture is None:
@@ -444,17 +443,19 @@ def load_mesh(path, scale: float | Sequence[float] = 1.0, rotate: Sequence[float
     specular = per_face([p[2].specular for p in parts], 3)
     exponent = per_face([p[2].exponent for p in parts], 1)[:, 0]
     emission = per_face([p[2].emission for p in parts], 3)
-    textures = TextureSet()
     face_tex = np.full(len(faces), -1, np.int32)
     face_uv = np.zeros((len(faces), 3, 2))
-    ids: dict[str, int] = {}
+    ids: dict[str, int] = {}  # texture name -> index
+    used_images = []
     for (_, _, mat, uv), s0, n in zip(parts, np.cumsum([0] + counts[:-1]), counts):
         if mat.texture is None:
             continue
         if mat.texture_name not in ids:
-            ids[mat.texture_name] = textures.add(mat.texture, mat.texture_name)
+            ids[mat.texture_name] = len(used_images)
+            used_images.append(mat.texture)
         face_tex[s0:s0 + n] = ids[mat.texture_name]
         face_uv[s0:s0 + n] = uv
+    textures = TextureSet.of(used_images, list(ids))
 
     vertices = (vertices * scale_v) @ rotation.T + offset
     if np.prod(np.sign(scale_v)) < 0:

@@ -87,15 +87,18 @@ class TextureSet:
     def __len__(self) -> int:
         return len(self.table)
 
+    @classmethod
+    def of(cls, images: list, names: list) -> "TextureSet":
+        """The set of (H, W, 3) linear images, in order (one copy of the texels)."""
+        shapes = [np.shape(im)[:2] for im in images]
+        sizes = [h * w for h, w in shapes]
+        table = np.array([[o, w, h] for o, (h, w) in zip(np.cumsum([0] + sizes[:-1]), shapes)], np.int64)
+        texels = np.concatenate([np.asarray(im, np.float32).reshape(-1, 3) for im in images]) if images else None
+        return cls(texels if texels is not None else np.zeros((0, 3), np.float32), table, names)
+
     def add(self, image: np.ndarray, name: str) -> int:
         """Append an (H, W, 3) linear image; returns its index."""
-        image = np.asarray(image, np.float32)
-        h, w = image.shape[:2]
-        row = np.array([[len(self.texels), w, h]], np.int64)
-        self.texels = np.concatenate([self.texels, image.reshape(-1, 3)])
-        self.table = np.concatenate([self.table, row])
-        self.names.append(str(name))
-        return len(self.table) - 1
+        return self.extend(TextureSet.of([image], [name]))
 
     def image(self, k: int) -> np.ndarray:
         """(H, W, 3) float32 view of image k."""
