@@ -180,7 +180,7 @@ def connect(address: str, tls=None, timeout: float = 10.0) -> Session:
 
     t0 = time.perf_counter()
     try:  # first a bare connection: a failed Client would linger and block the exit for seconds
-        asyncio.run(asyncio.wait_for(probe(), timeout + 1.0))
+        asyncio.run(asyncio.wait_for(probe(), timeout))
     except BaseException as exc:  # refused, timed out, not a scheduler, TLS handshake failed
         if isinstance(exc, KeyboardInterrupt):
             raise

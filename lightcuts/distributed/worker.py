@@ -75,15 +75,17 @@ def exclusive(body, *args):
     """``body(*args)`` as this process's only lightcuts task, with :func:`core_share` numba threads:
     ``(value, info)``, info = {"worker", "pid", "threads", "seconds" (body's), "wait" (for the lock),
     "start", "end" (wall-clock, for checks that tasks did not overlap)}."""
+    import numba
+
     from lightcuts.parallel import num_threads
 
     t_ask = time.perf_counter()
     with LOCK:
         start = time.time()
         t0 = time.perf_counter()
-        threads = core_share()
         try:
-            with num_threads(threads):
+            with num_threads(core_share()):
+                threads = numba.get_num_threads()  # what the task's kernels use
                 value = body(*args)
         finally:
             while _DROP:
