@@ -2,6 +2,7 @@
 size, with passes, after a worker is killed mid-render; one lightcuts task at a time per worker; a
 scheduler that cannot be reached, has no worker or other versions; no worker process left behind."""
 
+import json
 import logging
 import os
 import signal
@@ -113,6 +114,9 @@ def test_the_command_on_a_scheduler_writes_the_local_files(cluster, tmp_path):
     assert main(args + ["--out", str(tmp_path / "cluster"), "--scheduler", cluster.address, "--tile-size", "32"]) == 0
     for f in ("image.exr", "image.png", "cutsize.png"):
         assert (tmp_path / "local" / f).read_bytes() == (tmp_path / "cluster" / f).read_bytes(), f
+    rec = json.loads((tmp_path / "cluster" / "report.json").read_text())["cluster"]
+    assert rec["given"] == cluster.address and rec["tiles"] == 4 and rec["tile_size"] == 32
+    assert "cluster" not in json.loads((tmp_path / "local" / "report.json").read_text())
 
 
 def test_a_killed_worker_loses_only_its_running_tiles(cluster):
