@@ -120,9 +120,8 @@ def run_compare(args) -> dict:
         from lightcuts.distributed.runner import ClusterRunner
         from lightcuts.distributed.session import session_for
 
-        with session_for(spec) as session:
+        with session_for(spec, plans[0].integrator.trait("kernels")) as session:
             runner = ClusterRunner(session)
-            runner.warm(plans[0].integrator.trait("kernels"))
             result = compare(runner)
     result.save(out)
     print(result.markdown(), end="")

@@ -55,9 +55,8 @@ def run_render(args) -> dict:
         from lightcuts.distributed.runner import ClusterRunner
         from lightcuts.distributed.session import session_for
 
-        with session_for(spec) as session:
+        with session_for(spec, plan.integrator.trait("kernels")) as session:
             runner = ClusterRunner(session, spec.tile_size)
-            runner.warm(plan.integrator.trait("kernels"))
             result = render_run(cfg, plan, str(Path(args.config)), args.reference, not args.no_progress, runner)
     result.save(out_dir)
     print(f"{result.summary()} -> {out_dir}")

@@ -173,10 +173,8 @@ def run_scaling(args) -> list[dict]:
         from lightcuts.distributed.runner import ClusterRunner
         from lightcuts.distributed.session import session_for
 
-        with session_for(spec_cluster) as session:
+        with session_for(spec_cluster, plan.integrator.trait("kernels") if render else None) as session:
             runner = ClusterRunner(session)
-            if render:
-                runner.warm(plan.integrator.trait("kernels"))
             points = runner.scaling_points(cfg, scene, point_cfgs, specs, point_lights, point, not no_progress)
     rows = [p[0] for p in points]
     render_rows = [p[1] for p in points if p[1] is not None]

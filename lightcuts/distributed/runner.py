@@ -19,7 +19,7 @@ import threading
 import time
 
 from lightcuts.distributed.options import DEFAULT_TILE_SIZE
-from lightcuts.distributed.worker import in_run, warm_task
+from lightcuts.distributed.worker import in_run
 from lightcuts.errors import LightcutsError
 
 #: Seconds between looks for finished tasks (and, once a second, for the cluster's workers).
@@ -41,10 +41,10 @@ def tile_task(token, cfg, scene, envmap, lights, trees, window, reference: bool)
 
         integ = run.plan.integrator
         if reference:
-            settings = {**render_settings(cfg, scene.camera, envmap), "crop": window}
-            return integ.trait("reference")(scene, run.caster, lights, **settings)
-        settings = {**image_settings(cfg, scene.camera, envmap, integ), "crop": window}
-        return integ.obj(scene, run.caster, lights, trees, eps=cfg.render.eps, max_cut=cfg.render.max_cut,
+            settings = {**render_settings(cfg, run.scene.camera, envmap), "crop": window}
+            return integ.trait("reference")(run.scene, run.caster, lights, **settings)
+        settings = {**image_settings(cfg, run.scene.camera, envmap, integ), "crop": window}
+        return integ.obj(run.scene, run.caster, lights, trees, eps=cfg.render.eps, max_cut=cfg.render.max_cut,
                          **settings, **integ.params)
 
     result, info = in_run(token, cfg, scene, envmap, body)
@@ -60,12 +60,12 @@ def pass_task(token, cfg, scene, envmap, p: int) -> dict:
 
         seed = pass_seed(cfg.seed, p)
         t0 = time.perf_counter()
-        ls = run.plan.lights(scene, run.caster, envmap, seed=seed)
+        ls = run.plan.lights(run.scene, run.caster, envmap, seed=seed)
         t_lights = time.perf_counter() - t0
         t0 = time.perf_counter()
         tr = run.plan.trees(ls, seed=seed)
         t_build = time.perf_counter() - t0
-        result, t_render, _ = render_timed(cfg.model_copy(update={"seed": seed}), scene, run.caster, ls, tr, envmap,
+        result, t_render, _ = render_timed(cfg.model_copy(update={"seed": seed}), run.scene, run.caster, ls, tr, envmap,
                                            no_progress=True, integrator=run.plan.integrator, load=False)
         return {"seed": seed, "result": result, "lights_seconds": t_lights, "build_seconds": t_build,
                 "render_seconds": t_render}
@@ -83,22 +83,17 @@ class ClusterRunner:
 
     def __init__(self, session, tile_size: int = DEFAULT_TILE_SIZE):
         self.session = session
-        self.client = session.client
         self.tile_size = int(tile_size)
         self.token = secrets.token_hex(8)
         self.shipped = {"bytes": 0, "seconds": 0.0}
         self.tasks = []  # the info of every finished task
-        self.warming = []
         self.wall = 0.0
         self.n_tiles = 0
 
-    def warm(self, kernels: str | None) -> None:
-        """Start loading the render kernel (module ``kernels``) on every worker, while the client makes
-        the scene, lights and trees."""
-        for addr in self.session.workers():
-            self.warming += self.session.track([self.client.submit(
-                warm_task, kernels, key=f"lightcuts-warm-{addr}-{self.token}", workers=[addr],
-                allow_other_workers=False)])
+    @property
+    def client(self):
+        """The session's Client (waiting for a LocalCluster still starting)."""
+        return self.session.client
 
     def ship(self, *objects) -> list:
         """Futures of ``objects`` held by every worker (scattered with ``broadcast=True``)."""
@@ -268,7 +263,7 @@ class ClusterRunner:
             w["tiles"] += int(t["tile"])
             w["seconds"] += t["seconds"]
             w["setup_seconds"] += t.get("setup_seconds", 0.0)
-        for f in self.warming:
+        for f in self.session.warming:
             if f.done() and f.status == "finished":
                 info = f.result()
                 w = per.setdefault(info["worker"], {"tiles": 0, "tasks": 0, "seconds": 0.0, "setup_seconds": 0.0,

@@ -35,19 +35,54 @@ class Session:
     given : the cluster as the user named it (``--workers N`` or the scheduler address as typed)
     owned : whether the run closes the client (False for a Client the caller passed in)
     timeout : seconds a run waits without any worker before it gives up (the connect timeout)
+
+    :func:`local_cluster` starts its cluster on a thread, so that the client makes the scene, lights
+    and trees meanwhile: ``client`` and ``cluster`` wait for it on first use.
     """
 
-    def __init__(self, client, cluster=None, given: str = "", owned: bool = True, timeout: float = 10.0):
-        self.client = client
+    def __init__(self, client=None, cluster=None, given: str = "", owned: bool = True, timeout: float = 10.0):
+        self._client = client
+        self._cluster = cluster
         self.timeout = float(timeout)
-        self.cluster = cluster
         self.given = given
         self.owned = owned
         self.futures: list = []
+        self.warming: list = []  # warm_task futures, one per worker
         self.worker_pids: list[int] = []
         self._closed = False
+        self._starting = None  # the thread starting a LocalCluster
+        self._error = None
         with _OPEN_LOCK:
             _OPEN.append(self)
+
+    def _start(self, start) -> None:
+        """Run ``start()`` -> (client, cluster, worker pids) on a thread."""
+        def run():
+            try:
+                self._client, self._cluster, self.worker_pids = start()
+            except BaseException as exc:  # raised again on first use
+                self._error = exc
+
+        self._starting = threading.Thread(target=run, name="lightcuts-cluster-start", daemon=True)
+        self._starting.start()
+
+    def _ready(self) -> None:
+        starting = self._starting
+        if starting is not None and starting is not threading.current_thread():
+            starting.join()
+            self._starting = None
+        if self._error is not None:
+            raise self._error
+
+    @property
+    def client(self):
+        self._ready()
+        return self._client
+
+    @property
+    def cluster(self):
+        self._ready()
+        return self._cluster
 
     @property
     def closed(self) -> bool:
@@ -60,6 +95,15 @@ class Session:
         except TypeError:
             info = self.client.scheduler_info()
         return {addr: int(w.get("nthreads", 1)) for addr, w in info.get("workers", {}).items()}
+
+    def warm(self, kernels: str | None) -> None:
+        """Start loading the render kernel (module ``kernels``) on every worker (one task pinned to
+        each), while the client makes the scene, lights and trees."""
+        from lightcuts.distributed.worker import warm_task
+
+        for i, addr in enumerate(self.workers()):
+            self.warming += self.track([self.client.submit(warm_task, kernels, key=f"lightcuts-warm-{i}-{id(self)}",
+                                                           workers=[addr], allow_other_workers=False)])
 
     def record(self) -> dict:
         """report.json's view of the cluster: the address as given, the scheduler, workers and threads."""
@@ -77,9 +121,9 @@ class Session:
         """Cancel every tracked future still pending (on the cluster, not only here)."""
         pending = [f for f in self.futures if not f.done()]
         self.futures = []
-        if pending:
+        if pending and self._client is not None:
             with contextlib.suppress(Exception):
-                self.client.cancel(pending, force=True)
+                self._client.cancel(pending, force=True)
 
     def close(self, timeout: float = CLOSE_TIMEOUT) -> None:
         """Cancel the run's tasks, close the client (if owned) and the LocalCluster, and make sure
@@ -90,15 +134,18 @@ class Session:
         with _OPEN_LOCK:
             if self in _OPEN:
                 _OPEN.remove(self)
+        if self._starting is not None:
+            self._starting.join(timeout)
         self.cancel()
         if not self.owned:
             return
-        with contextlib.suppress(Exception):
-            self.client.close(timeout=timeout)
-        if self.cluster is not None:
+        if self._client is not None:
             with contextlib.suppress(Exception):
-                self.cluster.close(timeout=timeout)
-        _kill(self.worker_pids)
+                self._client.close(timeout=timeout)
+        _kill(self.worker_pids)  # a LocalCluster's workers hold nothing worth a graceful close (tenths of a second)
+        if self._cluster is not None:
+            with contextlib.suppress(Exception):
+                self._cluster.close(timeout=timeout)
 
 
 def _kill(pids) -> None:
@@ -131,24 +178,32 @@ def _quiet():
         logging.getLogger(name).setLevel(logging.ERROR)
 
 
-def local_cluster(workers: int, threads: int | None = None) -> Session:
-    """A LocalCluster of ``workers`` processes bound to 127.0.0.1, no dashboard, each with ``threads``
-    threads (default this machine's cores over the workers, at least 1), and its Client."""
-    import psutil
-    from distributed import Client, LocalCluster
-
+def local_cluster(workers: int, threads: int | None = None, kernels: str | None = None) -> Session:
+    """A Session of a LocalCluster of ``workers`` processes bound to 127.0.0.1 (its diagnostics server
+    on a free port of 127.0.0.1), each with ``threads`` threads (default this machine's cores over the
+    workers, at least 1), started on a thread; once up, its workers load the render kernel of the
+    module ``kernels`` (:meth:`Session.warm`)."""
     _quiet()
     threads = threads or max(1, (os.cpu_count() or 1) // workers)
-    before = {c.pid for c in psutil.Process().children(recursive=True)}
-    cluster = LocalCluster(n_workers=workers, threads_per_worker=threads, processes=True, host="127.0.0.1",
-                           dashboard_address="127.0.0.1:0", silence_logs=logging.CRITICAL)
-    try:
-        client = Client(cluster, set_as_default=False)
-    except BaseException:
-        cluster.close()
-        raise
-    session = Session(client, cluster, f"--workers {workers}")
-    session.worker_pids = [c.pid for c in psutil.Process().children(recursive=True) if c.pid not in before]
+    session = Session(None, None, f"--workers {workers}")
+
+    def start():
+        from distributed import Client, LocalCluster
+
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=threads, processes=True, host="127.0.0.1",
+                               dashboard_address="127.0.0.1:0", silence_logs=logging.CRITICAL)
+        try:
+            client = Client(cluster, set_as_default=False)
+            pids = list(client.run(os.getpid).values())
+        except BaseException:
+            cluster.close()
+            raise
+        session._client, session._cluster, session.worker_pids = client, cluster, pids
+        if kernels is not None:
+            session.warm(kernels)
+        return client, cluster, pids
+
+    session._start(start)
     return session
 
 
@@ -223,17 +278,22 @@ def _one_line(exc: BaseException) -> str:
     return text if len(text) < 300 else text[:297] + "..."
 
 
-def open_session(spec) -> Session:
-    """The Session a :class:`~lightcuts.distributed.options.ClusterSpec` asks for."""
+def open_session(spec, kernels: str | None = None) -> Session:
+    """The Session a :class:`~lightcuts.distributed.options.ClusterSpec` asks for, its workers loading
+    the render kernel of the module ``kernels`` (None: none)."""
     if spec.workers is not None:
-        return local_cluster(spec.workers)
-    return connect(spec.scheduler, spec.tls, spec.connect_timeout)
+        return local_cluster(spec.workers, kernels=kernels)
+    session = connect(spec.scheduler, spec.tls, spec.connect_timeout)
+    if kernels is not None:
+        session.warm(kernels)
+    return session
 
 
 @contextlib.contextmanager
-def session_for(spec):
-    """``with session_for(spec) as session:`` a Session closed at the end of the block, whatever ends it."""
-    session = open_session(spec)
+def session_for(spec, kernels: str | None = None):
+    """``with session_for(spec) as session:`` a Session (:func:`open_session`) closed at the end of the
+    block, whatever ends it."""
+    session = open_session(spec, kernels)
     try:
         yield session
     finally:

@@ -42,8 +42,8 @@ def reference_task(token, cfg, scene, envmap, lights, pixels) -> dict:
     def body(run):
         from lightcuts.commands.common import render_settings
 
-        settings = {**render_settings(cfg, scene.camera, envmap), "crop": None}
-        ref = run.plan.integrator.trait("reference")(scene, run.caster, lights, pixels=pixels, **settings)
+        settings = {**render_settings(cfg, run.scene.camera, envmap), "crop": None}
+        ref = run.plan.integrator.trait("reference")(run.scene, run.caster, lights, pixels=pixels, **settings)
         return {"image": ref.image[:, 0], "shadow_rays": int(ref.shadow_rays)}
 
     value, info = in_run(token, cfg, scene, envmap, body)
@@ -57,7 +57,7 @@ def row_task(token, cfg, scene, envmap, lights, tree: tuple, label: str, shared_
         from lightcuts.commands.plan import plan_run
 
         plan = plan_run(cfg, render=True, tree=_spec(tree))
-        return compute_row(cfg, plan, label, scene, run.caster, lights, envmap, shared_seconds, progress=False)
+        return compute_row(cfg, plan, label, run.scene, run.caster, lights, envmap, shared_seconds, progress=False)
 
     value, info = in_run(token, cfg, scene, envmap, body)
     return {**info, "computed": value}
@@ -122,7 +122,7 @@ def compare_rows(runner, cfg, plans, labels, shared, store, pixels, progress: bo
 def lights_task(token, cfg, scene, point_cfg, make_lights):
     """On a worker: ``make_lights(point_cfg, scene, caster)``, a scaling point's light set (it stays on
     the worker for the builds)."""
-    value, _ = in_run(token, cfg, scene, None, lambda run: make_lights(point_cfg, scene, run.caster))
+    value, _ = in_run(token, cfg, scene, None, lambda run: make_lights(point_cfg, run.scene, run.caster))
     return value
 
 
@@ -133,7 +133,7 @@ def point_task(token, cfg, scene, point_cfg, lights, tree: tuple, point) -> dict
         spec = _spec(tree)
         warm = spec.name not in run.warmed
         run.warmed.add(spec.name)
-        return point(point_cfg, scene, run.caster, lights, spec, warm)
+        return point(point_cfg, run.scene, run.caster, lights, spec, warm)
 
     value, info = in_run(token, cfg, scene, None, body)
     return {**info, "point": value}

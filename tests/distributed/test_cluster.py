@@ -259,7 +259,8 @@ def test_close_all_ends_a_local_clusters_worker_processes():
     """What the CLI's signal handler calls before it ends the process."""
     from lightcuts.distributed import session as sessions
 
-    s = sessions.local_cluster(2)
+    s = sessions.local_cluster(2)  # started on a thread
+    s.client.wait_for_workers(2)
     pids = list(s.worker_pids)
     assert len(pids) >= 2 and all(psutil.pid_exists(p) for p in pids) and s in sessions._OPEN
     sessions.close_all()
