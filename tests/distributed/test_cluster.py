@@ -28,6 +28,8 @@ ROOT = Path(__file__).parents[2]
 SMALL = {"camera.resolution": "[48,36]", "lights.indirect.count": "2000", "lights.direct.count": "64"}
 CONFIGS = {"cornell": ("cornell.yaml", SMALL),
            "kitchen": ("kitchen.yaml", {**SMALL, "scene.procedural.triangles": "20000"}),
+           "cornell-multidimensional": ("cornell.yaml", {**SMALL, "render.spp": "4",
+                                                         "render.integrator": "multidimensional"}),
            "kitchen-passes": ("kitchen.yaml", {**SMALL, "scene.procedural.triangles": "20000", "render.passes": "3",
                                                 "render.compensation": "true"}),
            "kitchen-slow": ("kitchen.yaml", {**SMALL, "scene.procedural.triangles": "20000",
@@ -80,7 +82,7 @@ def same_pixels(a, b):
             and a.report["shadow_rays"] == b.report["shadow_rays"] and a.report["eye_rays"] == b.report["eye_rays"])
 
 
-@pytest.mark.parametrize("name", ["cornell", "kitchen"])
+@pytest.mark.parametrize("name", ["cornell", "kitchen", "cornell-multidimensional"])
 def test_tiles_give_the_local_bytes_whatever_their_size(cluster, name):
     for tile in (16, 20):
         with session(cluster) as s:
@@ -110,12 +112,16 @@ def test_the_command_on_a_scheduler_writes_the_local_files(cluster, tmp_path):
     args = ["render", str(ROOT / "configs" / file), "--no-progress"]
     for k, v in overrides.items():
         args += ["--set", f"{k}={v}"]
-    assert main(args + ["--out", str(tmp_path / "local")]) == 0
-    assert main(args + ["--out", str(tmp_path / "cluster"), "--scheduler", cluster.address, "--tile-size", "32"]) == 0
-    for f in ("image.exr", "image.png", "cutsize.png"):
+    assert main(args + ["--out", str(tmp_path / "local"), "--reference"]) == 0
+    assert main(args + ["--out", str(tmp_path / "cluster"), "--reference", "--scheduler", cluster.address,
+                        "--tile-size", "32"]) == 0
+    for f in ("image.exr", "image.png", "cutsize.png", "reference.exr"):
         assert (tmp_path / "local" / f).read_bytes() == (tmp_path / "cluster" / f).read_bytes(), f
-    rec = json.loads((tmp_path / "cluster" / "report.json").read_text())["cluster"]
-    assert rec["given"] == cluster.address and rec["tiles"] == 4 and rec["tile_size"] == 32
+    report = json.loads((tmp_path / "cluster" / "report.json").read_text())
+    rec = report["cluster"]
+    assert rec["given"] == cluster.address and rec["tiles"] == 4 + 4 and rec["tile_size"] == 32  # image, reference
+    assert report["reference"]["relative_error"] == \
+        json.loads((tmp_path / "local" / "report.json").read_text())["reference"]["relative_error"]
     assert "cluster" not in json.loads((tmp_path / "local" / "report.json").read_text())
 
 
@@ -186,6 +192,40 @@ def _one_error_line(capsys, monkeypatch, args):
     t0 = time.perf_counter()
     rc = main(args)
     return rc, capsys.readouterr().err.strip().splitlines(), time.perf_counter() - t0, bool(made)
+
+
+def _certificate(folder: Path, name: str) -> tuple[str, str]:
+    """A self-signed certificate for 127.0.0.1 and its key (PEM files): its own CA."""
+    cert, key = folder / f"{name}.pem", folder / f"{name}-key.pem"
+    subprocess.run(["openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-keyout", str(key), "-out", str(cert),
+                    "-days", "1", "-subj", "/CN=127.0.0.1", "-addext", "subjectAltName=IP:127.0.0.1"],
+                   check=True, capture_output=True)
+    return str(cert), str(key)
+
+
+def test_a_tls_scheduler_with_the_tls_files(tmp_path, capsys, monkeypatch):
+    """--scheduler tls://... with --tls-ca/--tls-cert/--tls-key renders; a certificate of another CA is
+    one line naming --scheduler."""
+    if subprocess.run(["which", "openssl"], capture_output=True).returncode != 0:
+        pytest.skip("needs the openssl command to make certificates")
+    from distributed import Client, LocalCluster
+    from distributed.security import Security
+
+    cert, key = _certificate(tmp_path, "cluster")
+    other, other_key = _certificate(tmp_path, "other")
+    sec = Security(tls_ca_file=cert, tls_scheduler_cert=cert, tls_scheduler_key=key, tls_worker_cert=cert,
+                   tls_worker_key=key, tls_client_cert=cert, tls_client_key=key, require_encryption=True)
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, protocol="tls://", host="127.0.0.1",
+                      security=sec, dashboard_address="127.0.0.1:0", silence_logs=logging.ERROR) as lc:
+        address = lc.scheduler_address
+        assert address.startswith("tls://")
+        args = _render_args(tmp_path, "--scheduler", address, "--tls-ca", cert, "--tls-cert", cert, "--tls-key", key)
+        assert main(args) == 0
+        rc, err, _, made = _one_error_line(capsys, monkeypatch, _render_args(
+            tmp_path, "--scheduler", address, "--tls-ca", other, "--tls-cert", other, "--tls-key", other_key,
+            "--connect-timeout", "2"))
+    assert (tmp_path / "out" / "report.json").exists()
+    assert rc == 2 and len(err) == 1 and err[0].startswith(f"error: --scheduler: cannot reach {address}") and not made
 
 
 def test_an_unreachable_scheduler_is_one_line_within_the_timeout(tmp_path, capsys, monkeypatch):
