@@ -85,6 +85,7 @@ class ClusterRunner:
         self.session = session
         self.tile_size = int(tile_size)
         self.token = secrets.token_hex(8)
+        session.tokens.append(self.token)  # the workers forget the run when the session closes
         self.shipped = {"bytes": 0, "seconds": 0.0}
         self.tasks = []  # the info of every finished task
         self.wall = 0.0
@@ -111,7 +112,8 @@ class ClusterRunner:
         """The key of the run's task ``what`` number ``i`` (``what`` without dashes)."""
         return f"lightcuts-{what}-{i}-{self.token}"
 
-    def _tiles(self, cfg, scene, shipped, reference: bool) -> tuple[list, dict]:
+    def _tiles(self, cfg, scene, shipped, reference: bool) -> list:
+        """Futures of the image's tiles (with ``reference``, the reference's), row by row."""
         from lightcuts.distributed.tiles import tile_windows
 
         cam = scene.camera
@@ -121,7 +123,7 @@ class ClusterRunner:
         futures = [self.client.submit(tile_task, self.token, cfg, scene_f, env_f, lights_f, trees_f, w, reference,
                                       key=self.key(what, i)) for i, w in enumerate(windows)]
         self.n_tiles += len(windows)
-        return self.session.track(futures), windows
+        return self.session.track(futures)
 
     def gather(self, futures, desc: str, progress: bool, on_result, unit: str = "task",
                keep_going: bool = False) -> None:
@@ -181,7 +183,9 @@ class ClusterRunner:
     def passes(self, cfg, plan, scene, caster, envmap, *, desc: str = "lightcuts", progress: bool = True,
                lights=None, trees=None, on_pass=None, before_render=None):
         """:func:`lightcuts.api.passes.render_passes` on the cluster (pass 0's ``lights`` and ``trees``
-        made by the caller); the same Passes, byte for byte."""
+        made by the caller): the same image, cut sizes, ray counts and changes, byte for byte (the
+        clamped fraction up to rounding, :class:`~lightcuts.distributed.tiles.Mosaic`). Pass 0's
+        ``render_seconds`` is the wall time until its last tile, the others' their worker's time."""
         from lightcuts.api.passes import PassMean, pass_seed
         from lightcuts.distributed.tiles import Mosaic
 
@@ -193,7 +197,7 @@ class ClusterRunner:
         later = [self.client.submit(pass_task, self.token, cfg, shipped[0], shipped[1], p, key=self.key("pass", p))
                  for p in range(1, n)]
         later = self.session.track(later)
-        tiles, windows = self._tiles(cfg, scene, shipped, reference=False)
+        tiles = self._tiles(cfg, scene, shipped, reference=False)
         cam = scene.camera
         crop = cfg.render.crop if cfg.render.crop is not None else (0, 0, cam.width, cam.height)
         mosaic = Mosaic(crop)
@@ -223,7 +227,7 @@ class ClusterRunner:
 
         shipped = self.ship(scene, envmap, lights, None)
         t0 = time.perf_counter()
-        tiles, windows = self._tiles(cfg, scene, shipped, reference=True)
+        tiles = self._tiles(cfg, scene, shipped, reference=True)
         cam = scene.camera
         mosaic = Mosaic(cfg.render.crop if cfg.render.crop is not None else (0, 0, cam.width, cam.height))
         self.gather(tiles, desc, progress, lambda v: mosaic.add(v["window"], v["result"]))

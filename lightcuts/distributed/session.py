@@ -47,6 +47,7 @@ class Session:
         self.given = given
         self.owned = owned
         self.futures: list = []
+        self.tokens: list[str] = []  # the runs whose state the workers keep (lightcuts.distributed.worker)
         self.warming: list = []  # warm_task futures, one per worker
         self.worker_pids: list[int] = []
         self._closed = False
@@ -137,6 +138,11 @@ class Session:
         if self._starting is not None:
             self._starting.join(timeout)
         self.cancel()
+        if self.tokens and self._client is not None and self._cluster is None:  # a LocalCluster's workers end anyway
+            from lightcuts.distributed.worker import drop_runs
+
+            with contextlib.suppress(Exception):
+                self._client.run(drop_runs, *self.tokens, on_error="ignore")
         if not self.owned:
             return
         if self._client is not None:

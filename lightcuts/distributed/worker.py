@@ -12,7 +12,7 @@ others waiting.
 Scenes, lights and trees arrive as the arguments of tasks (Dask keeps one copy per worker); the ray
 caster (Embree's scene cannot be pickled) is built from the scene by the first task of a run on a
 worker and kept under the run's token (:func:`run_state`) until the client drops it
-(:func:`drop_run`) or newer runs push it out. The render kernel is loaded (or compiled) once per
+(:func:`drop_runs`) or newer runs push it out. The render kernel is loaded (or compiled) once per
 process (:func:`warm`).
 """
 
@@ -168,17 +168,18 @@ def _forget(token: str) -> None:
         _close(run)
 
 
-def drop_run(token: str) -> None:
-    """Forget the run ``token`` on this worker (its caster closed). The client calls it on every
-    worker when a run ends (``client.run``, on the worker's event loop, so it never waits): while a
-    task holds the lock, that task drops the run when it ends."""
+def drop_runs(*tokens: str) -> None:
+    """Forget the runs ``tokens`` on this worker (their casters closed). The client calls it on every
+    worker when its runs end (``client.run``, on the worker's event loop, so it never waits): while a
+    task holds the lock, that task drops them when it ends."""
     if LOCK.acquire(blocking=False):
         try:
-            _forget(token)
+            for token in tokens:
+                _forget(token)
         finally:
             LOCK.release()
     else:
-        _DROP.add(token)
+        _DROP.update(tokens)
 
 
 def runs() -> list[str]:

@@ -84,11 +84,14 @@ def same_pixels(a, b):
 
 @pytest.mark.parametrize("name", ["cornell", "kitchen", "cornell-multidimensional"])
 def test_tiles_give_the_local_bytes_whatever_their_size(cluster, name):
+    from lightcuts.distributed.worker import runs
+
     for tile in (16, 20):
         with session(cluster) as s:
             runner = ClusterRunner(s, tile)
             r = render(config(name), runner)
         assert same_pixels(r, local(name)), (name, tile)
+        assert all(kept == [] for kept in cluster.client.run(runs).values())  # each worker forgot the run
         rec = r.report["cluster"]
         n = -(-48 // tile) * -(-36 // tile)
         assert rec["tiles"] == n and sum(w["tiles"] for w in rec["per_worker"].values()) == n
