@@ -3,13 +3,15 @@
 Measured (``configs/kitchen.yaml``):
 
   overhead   ``lightcuts render configs/kitchen.yaml`` against the same with ``--workers 2`` (a
-             LocalCluster of 2 worker processes x 1 thread on this 2-core machine: pure overhead),
-             wall times of the whole command, ``--pairs`` interleaved pairs, medians
+             LocalCluster of 2 worker processes x 1 thread on this 2-core machine: pure overhead) and
+             ``--workers 1`` (1 process x 2 threads), wall times of the whole command, ``--pairs``
+             interleaved rounds, medians
   tiles      single-thread seconds of tiles of 16, 32, 64 and 128 px of the 3840 x 2160 frame at 1 eye
              ray per pixel, rendered as a worker renders them (a crop window of the run's image, the
-             render call's fixed cost included), ``--samples`` random tile positions per size; the
-             fixed cost alone (a one-pixel tile); a few 32 px tiles at 16 eye rays against the model
-             ``fixed + 16 x (1-ray tile - fixed)`` that scales the tiles to 16 eye rays
+             render call's fixed cost included): ``--samples`` random 128 px tiles and every 64, 32 and
+             16 px tile inside them (the same pixels at every size); the fixed cost alone (a one-pixel
+             tile); a few 32 px tiles at 16 eye rays against ``fixed + 16 x (1-ray tile - fixed)``,
+             whose ratio scales the model's tiles to 16 eye rays
   ship       at 200K and 1M triangles: the client's scene + lights + trees seconds (2 threads), the
              bytes of scene, lights and trees as Dask sends them, the seconds to scatter them to a
              LocalCluster of 2 workers (broadcast, loopback), a worker's setup (its scene and ray
@@ -28,7 +30,7 @@ per M, median of ``--trials`` draws.
 
 Prints tables and writes ``benchmarks/results/distributed-{overhead,tiles,ship,scheduler,model}.csv``.
 
-    python benchmarks/bench_distributed.py [--pairs 3] [--samples 24] [--tasks 2000] [--bandwidth 10]
+    python benchmarks/bench_distributed.py [--pairs 3] [--samples 12] [--tasks 2000] [--bandwidth 10]
 """
 
 from __future__ import annotations
@@ -65,15 +67,15 @@ def command_overhead(pairs: int) -> list[dict]:
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for i in range(pairs):
-            for case, extra in (("local", []), ("workers-2", ["--workers", "2"])):
+            for case, extra in (("local", []), ("workers-2", ["--workers", "2"]), ("workers-1", ["--workers", "1"])):
                 out = Path(tmp) / case
                 t0 = time.perf_counter()
                 subprocess.run([sys.executable, "-m", "lightcuts", "render", str(KITCHEN), "--out", str(out),
                                 "--no-progress", *extra], check=True, env=env, capture_output=True)
                 rows.append({"pair": i, "case": case, "seconds": time.perf_counter() - t0})
                 print(f"  {case:<10} {rows[-1]['seconds']:.2f} s", flush=True)
-            same = (Path(tmp) / "local" / "image.exr").read_bytes() == (Path(tmp) / "workers-2" / "image.exr").read_bytes()
-            if not same:
+            local = (Path(tmp) / "local" / "image.exr").read_bytes()
+            if any((Path(tmp) / c / "image.exr").read_bytes() != local for c in ("workers-1", "workers-2")):
                 raise SystemExit("the cluster's image differs from the local one")
     return rows
 
@@ -190,7 +192,7 @@ def simulate(machines: int, size: int, costs: np.ndarray, fixed: float, scale: f
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--pairs", type=int, default=3, help="interleaved local / --workers 2 command runs")
-    ap.add_argument("--samples", type=int, default=24, help="tile positions measured per tile size")
+    ap.add_argument("--samples", type=int, default=12, help="random 128 px regions whose tiles are measured")
     ap.add_argument("--tasks", type=int, default=2000, help="tasks of the scheduler measurement")
     ap.add_argument("--bandwidth", type=float, default=10.0, help="network link of the model, Gb/s")
     ap.add_argument("--trials", type=int, default=9, help="simulations per point (median)")
@@ -210,23 +212,27 @@ def main() -> None:
         print("overhead: lightcuts render configs/kitchen.yaml, local and --workers 2", flush=True)
         rows = command_overhead(a.pairs)
         save_csv(out / "distributed-overhead.csv", rows, ("pair", "case", "seconds"))
-        med = {c: statistics.median(r["seconds"] for r in rows if r["case"] == c) for c in ("local", "workers-2")}
-        print(f"  medians: local {med['local']:.2f} s, --workers 2 {med['workers-2']:.2f} s, "
-              f"ratio {med['workers-2'] / med['local']:.3f}", flush=True)
+        med = {c: statistics.median(r["seconds"] for r in rows if r["case"] == c)
+               for c in ("local", "workers-2", "workers-1")}
+        print(f"  medians: local {med['local']:.2f} s, --workers 2 {med['workers-2']:.2f} s "
+              f"({med['workers-2'] / med['local']:.3f}x), --workers 1 {med['workers-1']:.2f} s "
+              f"({med['workers-1'] / med['local']:.3f}x)", flush=True)
 
     print("tiles: kitchen 200K triangles, 3840x2160, single thread", flush=True)
     cfg, plan, scene, envmap, lights, trees, prep200 = prepare(200_000)
     fixed, setup200 = tile_seconds(cfg, plan, scene, envmap, lights, trees, [(0, 0, 1, 1)] * 5)
     fixed = statistics.median(fixed)
     tile_rows, costs = [], {}
+    regions = random_windows(max(SIZES), a.samples, rng)
     for size in SIZES:
-        windows = random_windows(size, a.samples if size <= 64 else max(8, a.samples // 2), rng)
+        windows = [(x, y, x + size, y + size) for x0, y0, x1, y1 in regions
+                   for y in range(y0, y1, size) for x in range(x0, x1, size)]
         secs, _ = tile_seconds(cfg, plan, scene, envmap, lights, trees, windows)
         costs[size] = np.array(secs)
         tile_rows += [{"size": size, "window": w, "spp": 1, "seconds": s} for w, s in zip(windows, secs)]
         q = np.percentile(secs, [10, 50, 90])
         print(f"  {size:>4} px: {len(secs)} tiles, p10 / median / p90 {q[0]:.3f} / {q[1]:.3f} / {q[2]:.3f} s, "
-              f"max {max(secs):.3f} s", flush=True)
+              f"max {max(secs):.3f} s, sum {sum(secs):.2f} s", flush=True)
     check = random_windows(32, 4, rng)
     one, _ = tile_seconds(cfg, plan, scene, envmap, lights, trees, check)
     many, _ = tile_seconds(cfg, plan, scene, envmap, lights, trees, check, spp=SPP)
@@ -300,9 +306,11 @@ def main() -> None:
                 row["efficiency"] = t1 / (row["machines"] * row["seconds"])
         for row in model_rows:
             if row["triangles"] == r["triangles"] and row.get("best"):
+                tiles = math.ceil(FRAME[0] / row["tile"]) * math.ceil(FRAME[1] / row["tile"])
                 print(f"  {r['triangles']:>9,} triangles, {row['machines']:>3} machines: best tile {row['tile']:>3} px, "
-                      f"{row['seconds']:8.1f} s, efficiency {row['efficiency']:.3f} (client {row['client_seconds']:.1f} s, "
-                      f"ship {row['ship_seconds']:.2f} s)", flush=True)
+                      f"{row['seconds']:8.1f} s, efficiency {row['efficiency']:.3f}; ideal {t1 / row['machines']:.1f} s, "
+                      f"client {row['client_seconds']:.1f} s, ship {row['ship_seconds']:.2f} s, scheduler "
+                      f"{tiles * sched if row['machines'] > 1 else 0:.1f} s for {tiles} tiles", flush=True)
     save_csv(out / "distributed-model.csv", model_rows, ("triangles", "machines", "tile", "seconds", "efficiency",
                                                          "ship_seconds", "client_seconds", "best"))
 
