@@ -177,7 +177,10 @@ def close_all(timeout: float = 2.0) -> None:
 
 def _quiet():
     """Dask's warnings and log lines about its own machinery (ports, versions, closing comms) off:
-    the CLI's output stays its own one-line style."""
+    the CLI's output stays its own one-line style. Importing ``distributed`` sets its loggers' levels
+    from Dask's config, so it is imported first."""
+    import distributed  # noqa: F401
+
     warnings.filterwarnings("ignore", module="distributed")
     for name in ("distributed", "distributed.client", "distributed.worker", "distributed.nanny",
                  "distributed.scheduler", "distributed.core", "distributed.comm"):
