@@ -18,9 +18,10 @@ from lightcuts.errors import LightcutsError
 
 #: Seconds to reach the scheduler (and for its first worker) before giving up.
 DEFAULT_CONNECT_TIMEOUT = 10.0
-#: Side of a square image tile, pixels (benchmarks/bench_distributed.py; docs/performance.md,
-#: "Distributed renders"): per tile a worker pays about 0.1 s (the light forest and the scene's bounds
-#: are set up per render call), so a tile should hold seconds of work.
+#: Side of a square image tile, pixels: a render call costs a worker about 0.04 s besides its pixels
+#: (the light forest is built per call), and the last tiles leave workers idle, so tiles hold about a
+#: second of work or more; 128 was the fastest on one machine, 32 in the model of 64 machines and more
+#: (docs/performance.md, "Distributed renders").
 DEFAULT_TILE_SIZE = 128
 #: The largest tile side and worker count the flags take.
 MAX_TILE_SIZE = 8192
