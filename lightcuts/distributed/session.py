@@ -61,7 +61,9 @@ class Session:
         def run():
             try:
                 self._client, self._cluster, self.worker_pids = start()
-            except BaseException as exc:  # raised again on first use
+            except Exception as exc:  # raised on first use, one line
+                self._error = LightcutsError(f"{self.given}: cannot start a Dask LocalCluster: {_one_line(exc)}")
+            except BaseException as exc:
                 self._error = exc
 
         self._starting = threading.Thread(target=run, name="lightcuts-cluster-start", daemon=True)

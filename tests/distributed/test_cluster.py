@@ -25,6 +25,9 @@ from lightcuts.distributed.runner import ClusterRunner
 from lightcuts.distributed.session import Session
 
 ROOT = Path(__file__).parents[2]
+#: Tests that start worker processes (a LocalCluster of processes): ``slow``, as tests/conftest.py marks
+#: the tests that start the CLI.
+SPAWNS = pytest.mark.slow
 SMALL = {"camera.resolution": "[48,36]", "lights.indirect.count": "2000", "lights.direct.count": "64"}
 CONFIGS = {"cornell": ("cornell.yaml", SMALL),
            "kitchen": ("kitchen.yaml", {**SMALL, "scene.procedural.triangles": "20000"}),
@@ -82,6 +85,7 @@ def same_pixels(a, b):
             and a.report["shadow_rays"] == b.report["shadow_rays"] and a.report["eye_rays"] == b.report["eye_rays"])
 
 
+@SPAWNS
 @pytest.mark.parametrize("name", ["cornell", "kitchen", "cornell-multidimensional"])
 def test_tiles_give_the_local_bytes_whatever_their_size(cluster, name):
     from lightcuts.distributed.worker import runs
@@ -100,6 +104,7 @@ def test_tiles_give_the_local_bytes_whatever_their_size(cluster, name):
             local(name).report["clamping"]["clamped_energy_fraction"], rel=1e-7)  # from the tiles' means
 
 
+@SPAWNS
 def test_passes_as_tasks_give_the_local_mean(cluster):
     with session(cluster) as s:
         r = render(config("kitchen-passes"), ClusterRunner(s, 24))
@@ -110,6 +115,7 @@ def test_passes_as_tasks_give_the_local_mean(cluster):
     assert sum(w["tasks"] for w in r.report["cluster"]["per_worker"].values()) == 2 + 4  # passes 1, 2 and 4 tiles
 
 
+@SPAWNS
 def test_the_command_on_a_scheduler_writes_the_local_files(cluster, tmp_path):
     file, overrides = CONFIGS["kitchen"]
     args = ["render", str(ROOT / "configs" / file), "--no-progress"]
@@ -128,6 +134,7 @@ def test_the_command_on_a_scheduler_writes_the_local_files(cluster, tmp_path):
     assert "cluster" not in json.loads((tmp_path / "local" / "report.json").read_text())
 
 
+@SPAWNS
 def test_a_killed_worker_loses_only_its_running_tiles(cluster):
     client = cluster.client
     out = {}
@@ -231,6 +238,18 @@ def test_a_tls_scheduler_with_the_tls_files(tmp_path, capsys, monkeypatch):
     assert rc == 2 and len(err) == 1 and err[0].startswith(f"error: --scheduler: cannot reach {address}") and not made
 
 
+def test_a_local_cluster_that_cannot_start_is_one_line(tmp_path, capsys, monkeypatch):
+    import distributed
+
+    def refuse(*args, **kwargs):
+        raise OSError("no free port")
+
+    monkeypatch.setattr(distributed, "LocalCluster", refuse)
+    rc, err, _, _ = _one_error_line(capsys, monkeypatch, _render_args(tmp_path, "--workers", "2"))
+    assert rc == 2 and err == ["error: --workers 2: cannot start a Dask LocalCluster: no free port"]
+    assert not (tmp_path / "out").exists()
+
+
 def test_an_unreachable_scheduler_is_one_line_within_the_timeout(tmp_path, capsys, monkeypatch):
     address = f"tcp://127.0.0.1:{_free_port()}"
     rc, err, seconds, made = _one_error_line(capsys, monkeypatch,
@@ -298,6 +317,7 @@ def test_tasks_waiting_for_a_worker_give_up_after_the_timeout():
     assert time.perf_counter() - t0 < 6
 
 
+@SPAWNS
 def test_close_all_ends_a_local_clusters_worker_processes():
     """What the CLI's signal handler calls before it ends the process."""
     from lightcuts.distributed import session as sessions
@@ -310,6 +330,7 @@ def test_close_all_ends_a_local_clusters_worker_processes():
     assert not [p for p in pids if psutil.pid_exists(p)] and s not in sessions._OPEN and s.closed
 
 
+@SPAWNS
 def test_workers_of_another_lightcuts_version_are_refused(cluster, tmp_path, capsys, monkeypatch):
     def pretend(version):
         import distributed.versions as v
@@ -345,6 +366,7 @@ def _descendants(pid):
     return out
 
 
+@SPAWNS
 def test_a_finished_run_leaves_no_worker_process(tmp_path, capfd):
     before = _descendants(os.getpid())
     seen = set()
@@ -375,7 +397,7 @@ def test_ctrl_c_cancels_the_tasks_and_leaves_no_worker_process(cluster, tmp_path
             flag, "2" if flag == "--workers" else cluster.address]
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     p = subprocess.Popen([sys.executable, "-m", "lightcuts", *args], cwd=tmp_path, env=env, stdout=subprocess.PIPE,
-                         stderr=subprocess.PIPE, text=True)
+                         stderr=subprocess.PIPE, text=True, start_new_session=True)
     seen = set()
     deadline = time.time() + 120
     while time.time() < deadline:  # until the cluster is busy with the run's tiles
@@ -386,7 +408,7 @@ def test_ctrl_c_cancels_the_tasks_and_leaves_no_worker_process(cluster, tmp_path
         time.sleep(0.05)
     time.sleep(3.0 if flag == "--workers" else 0.5)  # the workers at work on the tiles
     seen |= _descendants(p.pid)
-    p.send_signal(signal.SIGINT)
+    os.killpg(p.pid, signal.SIGINT)  # as Ctrl-C in a terminal: the command and its worker processes
     _, err = p.communicate(timeout=60)
     assert p.returncode == 130 and err.strip().splitlines() == ["error: interrupted"], err
     deadline = time.time() + 10
