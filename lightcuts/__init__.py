@@ -8,8 +8,9 @@ One sub-package per stage, each importing only the stages before it: ``cluster``
 clustering engine: kd-tree, Fig. 3/4, dissimilarities, shared by the BVH and the light trees) ->
 ``scene`` -> ``accel`` (ray casting over the scene's triangles, which the particle tracer already
 needs) -> ``lights`` -> ``trees`` -> ``render`` -> ``report`` -> ``mitsuba`` (the optional Mitsuba 3
-reference renderer, imported only when used). Above them, ``api`` (the Python API) and ``commands``
-(one module per CLI command, each resolving its plan before any work) and ``cli``; below them,
+reference renderer, imported only when used). Above them, ``api`` (the Python API), ``distributed``
+(runs on a Dask cluster, beside the API, imported only with ``--workers`` / ``--scheduler``) and
+``commands`` (one module per CLI command, each resolving its plan before any work) and ``cli``; below them,
 ``config`` (the run schema and its defaults), ``registry`` (plugins) and small helpers. Data travel
 between stages as flat numpy arrays in small classes (:class:`~lightcuts.scene.Scene`,
 :class:`~lightcuts.lights.LightSet`, :class:`~lightcuts.trees.LightTree`), each saved as ``.npz``;

@@ -2,4 +2,5 @@ import sys
 
 from lightcuts.cli import main
 
-sys.exit(main())
+if __name__ == "__main__":  # not when a Dask worker process started by --workers imports the main module
+    sys.exit(main())

@@ -58,6 +58,9 @@ def _on_signal(signum, frame) -> None:
 
     code, what = _SIGNALS[signum]
     remove_temporaries()
+    sessions = sys.modules.get("lightcuts.distributed.session")  # loaded only by a run on a Dask cluster
+    if sessions is not None:
+        sessions.close_all()  # cancel the cluster's tasks, close a LocalCluster and its worker processes
     try:
         sys.stderr.write(f"\nerror: {what}\n" if sys.stderr.isatty() else f"error: {what}\n")
         sys.stderr.flush()

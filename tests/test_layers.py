@@ -16,8 +16,9 @@ PACKAGE = Path(lightcuts.__file__).parent
 #: The stages in their order; a stage may import the ones before it. ``cluster`` is the clustering
 #: engine (kd-tree, Fig. 3/4) that the BVH builders of accel and the light-tree builders share.
 STAGES = ("cluster", "scene", "accel", "lights", "trees", "render", "report", "mitsuba")
-#: On top: the Python API (``api``, which the commands call) and the command line.
-ABOVE = ("api", "commands", "cli", "__main__")
+#: On top: the Python API (``api``, which the commands call), runs on a Dask cluster (``distributed``,
+#: beside the API) and the command line.
+ABOVE = ("api", "distributed", "commands", "cli", "__main__")
 
 
 def imported_lightcuts_modules(path: Path) -> set[str]:

@@ -152,11 +152,13 @@ class Comparison:
 
 class _Shared:
     """The scene, ray caster, environment and lights of every row, made on first use (a compare
-    whose rows are all stored needs none of them)."""
+    whose rows are all stored needs none of them). ``warm``: start the child that compiles the render
+    kernel (not when a cluster's workers render)."""
 
-    def __init__(self, plan):
+    def __init__(self, plan, warm: bool = True):
         self.plan = plan
         self.ready = False
+        self.warm = warm
         self.warmup = None
 
     def get(self):
@@ -165,7 +167,7 @@ class _Shared:
 
             t0 = time.perf_counter()
             self.scene = self.plan.scene()
-            if self.plan.caster.trait("warm_render_kernel", False):
+            if self.warm and self.plan.caster.trait("warm_render_kernel", False):
                 self.warmup = start_render_warmup(self.plan.integrator.trait("kernels"))
             self.caster = self.plan.make_caster(self.scene)
             self.envmap = self.plan.environment()
@@ -176,21 +178,28 @@ class _Shared:
 
 
 def compare_run(cfg, plans, labels, pixels, store, *, source: str | None = None, diff=None,
-                mitsuba_spp: int | None = None, mitsuba_passes: int = 0, progress: bool = True) -> Comparison:
+                mitsuba_spp: int | None = None, mitsuba_passes: int = 0, progress: bool = True,
+                runner=None) -> Comparison:
     """Run the rows (one :class:`~lightcuts.commands.plan.Plan` and label each) and the reference on
     ``pixels`` ((K, 2) int64 or None: no error columns); ``store`` a RowStore; ``mitsuba_spp``: add
     the Mitsuba study with a long render of that many spp, and with ``mitsuba_passes`` > 0 the
     converging render of the study's row (:func:`converging_config`) at its own time; ``source``,
-    ``diff``: recorded in the report."""
+    ``diff``: recorded in the report. ``runner``: computes the reference and the rows the store lacks
+    on a cluster (``runner.compare_rows(cfg, plans, labels, shared, store, pixels, progress) ->
+    (reference, results)``, :class:`lightcuts.distributed.runner.ClusterRunner`), their values those
+    of this function's own; its ``record()`` becomes report.json's ``cluster``."""
     from lightcuts.commands.warmup import finish_warmup
 
-    shared = _Shared(plans[0])
+    shared = _Shared(plans[0], warm=runner is None)
     try:
-        reference = None
-        if pixels is not None:
-            reference = _reference(cfg, shared, store, pixels, progress)
-        results = [_row(cfg, plan, label, shared, store, pixels, reference, progress)
-                   for plan, label in zip(plans, labels)]
+        if runner is not None:
+            reference, results = runner.compare_rows(cfg, plans, labels, shared, store, pixels, progress)
+        else:
+            reference = None
+            if pixels is not None:
+                reference = _reference(cfg, shared, store, pixels, progress)
+            results = [_row(cfg, plan, label, shared, store, pixels, reference, progress)
+                       for plan, label in zip(plans, labels)]
         mitsuba = None
         if mitsuba_spp is not None:
             from lightcuts.mitsuba.study import equal_time_study
@@ -202,7 +211,10 @@ def compare_run(cfg, plans, labels, pixels, store, *, source: str | None = None,
     finally:
         if shared.warmup is not None:
             finish_warmup(shared.warmup, timeout=0)
-    return _comparison(cfg, source, results, reference, pixels, diff, mitsuba)
+    comparison = _comparison(cfg, source, results, reference, pixels, diff, mitsuba)
+    if runner is not None:
+        comparison.report["cluster"] = runner.record()
+    return comparison
 
 
 def converging_config(cfg, integrator, passes: int):
@@ -228,17 +240,35 @@ def _converging(plan, shared, passes: int, progress: bool) -> dict:
     return {"label": label, "seconds": result.seconds, "image": result.image}
 
 
-def _reference(cfg, shared, store, pixels, progress: bool) -> dict:
-    """The all-lights reference on the pixel sample: {"image": (K, 3), "seconds", "shadow_rays"}."""
+def reference_key(cfg, pixels) -> str:
+    """The row store's key of the reference on ``pixels``."""
     from lightcuts import __version__
-    from lightcuts.commands.common import progress_bar, render_settings
     from lightcuts.report.compare_store import shared_config, store_key
 
-    key = store_key(what="reference", config=shared_config(cfg), pixels=pixels.tolist(), version=__version__)
+    return store_key(what="reference", config=shared_config(cfg), pixels=pixels.tolist(), version=__version__)
+
+
+def stored_reference(store, key: str) -> dict | None:
+    """The stored reference ({"image": (K, 3), "seconds", "shadow_rays"}), or None."""
     cached = store.load("reference", key)
+    if cached is None:
+        return None
+    return {"image": cached["image"], "seconds": float(cached["seconds"]), "shadow_rays": int(cached["shadow_rays"])}
+
+
+def save_reference(store, key: str, reference: dict) -> None:
+    store.save("reference", key, image=reference["image"], seconds=np.array(reference["seconds"]),
+               shadow_rays=np.array(reference["shadow_rays"]))
+
+
+def _reference(cfg, shared, store, pixels, progress: bool) -> dict:
+    """The all-lights reference on the pixel sample: {"image": (K, 3), "seconds", "shadow_rays"}."""
+    from lightcuts.commands.common import progress_bar, render_settings
+
+    key = reference_key(cfg, pixels)
+    cached = stored_reference(store, key)
     if cached is not None:
-        return {"image": cached["image"], "seconds": float(cached["seconds"]),
-                "shadow_rays": int(cached["shadow_rays"])}
+        return cached
     s = shared.get()
     with progress_bar(len(pixels), f"{cfg.name}: reference on {len(pixels)} pixels", not progress,
                       unit="px") as bar:
@@ -247,66 +277,103 @@ def _reference(cfg, shared, store, pixels, progress: bool) -> dict:
         reference = s.plan.integrator.trait("reference")
         ref = reference(s.scene, s.caster, s.lights, progress=bar.update, pixels=pixels, **settings)
         seconds = time.perf_counter() - t0
-    image = ref.image[:, 0]
-    store.save("reference", key, image=image, seconds=np.array(seconds), shadow_rays=np.array(ref.shadow_rays))
-    return {"image": image, "seconds": seconds, "shadow_rays": int(ref.shadow_rays)}
+    result = {"image": ref.image[:, 0], "seconds": seconds, "shadow_rays": int(ref.shadow_rays)}
+    save_reference(store, key, result)
+    return result
 
 
-def _row(cfg, plan, label, shared, store, pixels, reference, progress: bool) -> dict:
-    """One row: {"row": the table row, "cut": (H, W) cut sizes, "image"}, from the store or computed."""
+def row_key(cfg, plan, pixels) -> str:
+    """The row store's key of the row of ``plan``'s builder, metric and c."""
     from lightcuts import __version__
+    from lightcuts.report.compare_store import shared_config, store_key
+
+    spec = plan.tree
+    return store_key(what="row", store=2, config=shared_config(cfg), builder=spec.name,
+                     metric=spec.metric.name if spec.metric is not None else None, c=spec.c,
+                     pixels=None if pixels is None else pixels.tolist(), version=__version__)
+
+
+def stored_row(store, plan, label, key: str) -> dict | None:
+    """The stored row {"row", "cut", "image"} of ``label``, or None."""
+    from lightcuts.report.compare import file_label
+
+    cached = store.load(file_label(label), key)
+    if cached is None:
+        return None
+    return {"row": {**json.loads(str(cached["row"])), "plugins": plan.record(),
+                    "cut_unit": plan.integrator.trait("cut_unit")},
+            "cut": cached["cut"], "image": cached["image"]}
+
+
+def compute_row(cfg, plan, label, scene, caster, lights, envmap, shared_seconds: float, progress: bool,
+                before_render=None) -> dict:
+    """A row's trees and image: {"row", "cut", "image"} without the error columns (:func:`finish_row`).
+    The builder's kernels are loaded on a few lights first (untimed), then the trees are built (timed)
+    and the image rendered after a one-pixel load (:func:`~lightcuts.commands.common.render_timed`);
+    ``shared_seconds``: the scene's and lights' time; ``before_render()`` once before the image."""
     from lightcuts.commands.common import render_timed
     from lightcuts.commands.plan import tree_meta
-    from lightcuts.commands.warmup import finish_warmup
     from lightcuts.lights.lightset import LightSet
-    from lightcuts.report.compare import file_label
-    from lightcuts.report.compare_store import shared_config, store_key
-    from lightcuts.report.images import relative_error
     from lightcuts.trees.build import build_tree
 
     spec = plan.tree
-    key = store_key(what="row", store=2, config=shared_config(cfg), builder=spec.name,
-                    metric=spec.metric.name if spec.metric is not None else None, c=spec.c,
-                    pixels=None if pixels is None else pixels.tolist(), version=__version__)
-    name = file_label(label)
-    unit = plan.integrator.trait("cut_unit")
-    cached = store.load(name, key)
-    if cached is not None:
-        return {"row": {**json.loads(str(cached["row"])), "plugins": plan.record(), "cut_unit": unit},
-                "cut": cached["cut"], "image": cached["image"]}
-
-    s = shared.get()
-    for typ, ls in s.lights.items():  # load (or compile) the builder's kernels untimed
+    for typ, ls in lights.items():  # load (or compile) the builder's kernels untimed
         k = min(len(ls), _WARM_LIGHTS)
         few = LightSet(ls.position[:k], ls.normal[:k], ls.intensity[:k], ls.type, ls.indirect[:k], dict(ls.meta))
         build_tree(few, spec, seed=cfg.seed)
     t0 = time.perf_counter()
-    trees = {typ: build_tree(ls, spec, seed=cfg.seed) for typ, ls in s.lights.items()}
+    trees = {typ: build_tree(ls, spec, seed=cfg.seed) for typ, ls in lights.items()}
     t_build = time.perf_counter() - t0
     used = tree_meta(trees)
-
-    finish_warmup(s.warmup)
-    s.warmup = None
-    result, t_image, _ = render_timed(cfg, s.scene, s.caster, s.lights, trees, s.envmap, f"{cfg.name}: {label}",
+    if before_render is not None:
+        before_render()
+    result, t_image, _ = render_timed(cfg, scene, caster, lights, trees, envmap, f"{cfg.name}: {label}",
                                       not progress, plan.integrator)
-    crop = cfg.render.crop
-    x0, y0 = (0, 0) if crop is None else crop[:2]
-
     n_pixels = result.cut_size.size
     row = {"label": label, "builder": used["builder"], "metric": used["metric"], "c": used["c"],
-           "lights": {typ: len(ls) for typ, ls in s.lights.items()},
-           "build_s": t_build, "preprocess_s": s.seconds + t_build, "image_s": t_image,
-           "summed_s": s.seconds + t_build + t_image,
-           "cut_mean": float(result.cut_size.mean()), "cut_max": float(result.cut_size.max()), "cut_unit": unit,
+           "lights": {typ: len(ls) for typ, ls in lights.items()},
+           "build_s": t_build, "preprocess_s": shared_seconds + t_build, "image_s": t_image,
+           "summed_s": shared_seconds + t_build + t_image,
+           "cut_mean": float(result.cut_size.mean()), "cut_max": float(result.cut_size.max()),
+           "cut_unit": plan.integrator.trait("cut_unit"),
            "shadow_rays_per_pixel": float(result.shadow_rays) / n_pixels,
            "err_median": None, "err_p99": None, "pixels_compared": 0, "plugins": plan.record()}
+    return {"row": row, "cut": result.cut_size, "image": result.image}
+
+
+def finish_row(cfg, computed: dict, pixels, reference, store, label, key: str) -> dict:
+    """The row with its error against ``reference`` on ``pixels`` (None: no error columns), stored."""
+    from lightcuts.report.compare import file_label
+    from lightcuts.report.images import relative_error
+
+    row, image = computed["row"], computed["image"]
     if reference is not None:
-        sample = result.image[pixels[:, 1] - y0, pixels[:, 0] - x0]
+        crop = cfg.render.crop
+        x0, y0 = (0, 0) if crop is None else crop[:2]
+        sample = image[pixels[:, 1] - y0, pixels[:, 0] - x0]
         err = relative_error(sample[:, None], reference["image"][:, None])
         row.update(err_median=err["median"], err_p99=err["p99"], err_mean=err["mean"], err_max=err["max"],
                    pixels_compared=err["pixels"])
-    store.save(name, key, row=np.array(json.dumps(row)), cut=result.cut_size, image=result.image)
-    return {"row": row, "cut": result.cut_size, "image": result.image}
+    store.save(file_label(label), key, row=np.array(json.dumps(row)), cut=computed["cut"], image=image)
+    return computed
+
+
+def _row(cfg, plan, label, shared, store, pixels, reference, progress: bool) -> dict:
+    """One row: {"row": the table row, "cut": (H, W) cut sizes, "image"}, from the store or computed."""
+    from lightcuts.commands.warmup import finish_warmup
+
+    key = row_key(cfg, plan, pixels)
+    cached = stored_row(store, plan, label, key)
+    if cached is not None:
+        return cached
+    s = shared.get()
+
+    def finish():
+        finish_warmup(s.warmup)
+        s.warmup = None
+
+    computed = compute_row(cfg, plan, label, s.scene, s.caster, s.lights, s.envmap, s.seconds, progress, finish)
+    return finish_row(cfg, computed, pixels, reference, store, label, key)
 
 
 def _comparison(cfg, source, results: list[dict], reference, pixels, diff, mitsuba) -> Comparison:

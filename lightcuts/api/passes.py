@@ -59,6 +59,58 @@ class Passes:
         return float(sum(r["seconds"] for r in self.records))
 
 
+class PassMean:
+    """The running mean of passes fed in pass order (:func:`render_passes` and a cluster's passes share
+    it, so both sum the same float64 arrays in the same order and give the same bytes).
+
+    n : the number of passes; on_pass : as :func:`render_passes`'s.
+    """
+
+    def __init__(self, n: int, on_pass=None):
+        self.n = int(n)
+        self.on_pass = on_pass
+        self.acc = self.cut = self.prev_lum = None
+        self.rays = self.eye = 0
+        self.clamped = self.elapsed = 0.0
+        self.records = []
+        self.first = None
+
+    def add(self, p: int, seed: int, result, t_lights: float, t_build: float, t_render: float) -> None:
+        """Pass ``p`` (the next one): its RenderResult (image, cut_size, shadow_rays, eye_rays,
+        clamped_fraction) and the seconds of its lights, trees and image."""
+        from lightcuts.lights.lightset import LUMINANCE
+
+        assert p == len(self.records), f"pass {p} added after {len(self.records)} passes"
+        if p == 0:
+            self.first = result
+        img = result.image.astype(np.float64)
+        self.acc = img if self.acc is None else self.acc + img
+        self.cut = result.cut_size.astype(np.float64) if self.cut is None else self.cut + result.cut_size
+        self.rays += int(result.shadow_rays)
+        self.eye += int(result.eye_rays)
+        self.clamped += float(result.clamped_fraction)
+        mean = self.acc / (p + 1)
+        lum = mean @ LUMINANCE
+        change = None
+        if self.prev_lum is not None:
+            m = float(lum.mean())
+            change = float(np.abs(lum - self.prev_lum).mean()) / m if m > 0 else 0.0
+        self.prev_lum = lum
+        seconds = t_lights + t_build + t_render
+        self.elapsed += seconds
+        self.records.append({"pass": p, "seed": seed, "lights_seconds": t_lights, "build_seconds": t_build,
+                             "render_seconds": t_render, "seconds": seconds, "change": change})
+        if self.on_pass is not None:
+            self.on_pass(p, mean, self.elapsed)
+
+    def finish(self, load: float, lights: dict, trees: dict) -> Passes:
+        """The Passes once all n were added; ``lights``, ``trees``: pass 0's."""
+        n, r0 = self.n, self.first
+        image = r0.image if n == 1 else (self.acc / n).astype(np.float32)
+        cut_size = r0.cut_size if n == 1 else (self.cut / n).astype(np.float32)
+        return Passes(image, cut_size, r0, self.rays, self.eye, self.clamped / n, load, self.records, lights, trees)
+
+
 def render_passes(cfg, plan, scene, caster, envmap, *, desc: str = "lightcuts", progress: bool = True,
                   lights: dict | None = None, trees: dict | None = None, on_pass=None, before_render=None) -> Passes:
     """Render ``cfg.render.passes`` passes (module docstring) with the plan's integrator.
@@ -68,16 +120,11 @@ def render_passes(cfg, plan, scene, caster, envmap, *, desc: str = "lightcuts", 
     before_render() once, before pass 0's image (e.g. waiting for the kernel's compile child).
     """
     from lightcuts.commands.common import render_timed
-    from lightcuts.lights.lightset import LUMINANCE
 
     n = int(cfg.render.passes)
-    acc = cut = None
-    rays = eye = 0
-    clamped = 0.0
-    records, load = [], 0.0
+    mean = PassMean(n, on_pass)
+    load = 0.0
     first = {}
-    prev_lum = None
-    elapsed = 0.0
     for p in range(n):
         seed = pass_seed(cfg.seed, p)
         pcfg = cfg if p == 0 else cfg.model_copy(update={"seed": seed})
@@ -93,29 +140,7 @@ def render_passes(cfg, plan, scene, caster, envmap, *, desc: str = "lightcuts", 
         result, t_render, t_load = render_timed(pcfg, scene, caster, ls, tr, envmap, label, not progress,
                                                 plan.integrator, load=p == 0)
         if p == 0:
-            load, first = t_load, {"lights": ls, "trees": tr, "result": result}
-        img = result.image.astype(np.float64)
-        acc = img if acc is None else acc + img
-        cut = result.cut_size.astype(np.float64) if cut is None else cut + result.cut_size
-        rays += int(result.shadow_rays)
-        eye += int(result.eye_rays)
-        clamped += float(result.clamped_fraction)
-        mean = acc / (p + 1)
-        lum = mean @ LUMINANCE
-        change = None
-        if prev_lum is not None:
-            m = float(lum.mean())
-            change = float(np.abs(lum - prev_lum).mean()) / m if m > 0 else 0.0
-        prev_lum = lum
-        seconds = t_lights + t_build + t_render
-        elapsed += seconds
-        records.append({"pass": p, "seed": seed, "lights_seconds": t_lights, "build_seconds": t_build,
-                        "render_seconds": t_render, "seconds": seconds, "change": change})
-        if on_pass is not None:
-            on_pass(p, mean, elapsed)
-        if n > 1:
-            del result
-    r0 = first["result"]
-    image = r0.image if n == 1 else (acc / n).astype(np.float32)
-    cut_size = r0.cut_size if n == 1 else (cut / n).astype(np.float32)
-    return Passes(image, cut_size, r0, rays, eye, clamped / n, load, records, first["lights"], first["trees"])
+            load, first = t_load, {"lights": ls, "trees": tr}
+        mean.add(p, seed, result, t_lights, t_build, t_render)
+        del result
+    return mean.finish(load, first["lights"], first["trees"])

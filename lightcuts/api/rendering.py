@@ -99,9 +99,17 @@ def check_reference(cfg) -> None:
                              "(lightcuts reference CONFIG)")
 
 
-def render_run(cfg, plan, source: str | None, reference: bool = False, progress: bool = True) -> Render:
+def render_run(cfg, plan, source: str | None, reference: bool = False, progress: bool = True,
+               runner=None) -> Render:
     """Run the plan (:func:`lightcuts.commands.plan.plan_run` of ``cfg`` with ``render=True``) and
-    return the Render; ``source`` is the config file recorded in the report (None: none)."""
+    return the Render; ``source`` is the config file recorded in the report (None: none).
+
+    runner : renders the passes and the reference instead of this process, with the signature of
+        :func:`~lightcuts.api.passes.render_passes` (``runner.passes``), ``runner.reference(cfg, plan,
+        scene, lights, envmap, desc, progress) -> RenderResult`` and ``runner.record() -> dict``
+        (report.json's ``cluster``): a cluster's (:class:`lightcuts.distributed.runner.ClusterRunner`);
+        None renders here.
+    """
     from lightcuts.commands.warmup import finish_warmup
 
     if reference:
@@ -109,12 +117,12 @@ def render_run(cfg, plan, source: str | None, reference: bool = False, progress:
 
     warmup = []  # the child compiling the render kernel, if any
     try:
-        return _run(cfg, plan, source, reference, progress, warmup)
+        return _run(cfg, plan, source, reference, progress, warmup, runner)
     finally:
         finish_warmup(warmup[0] if warmup else None, timeout=0)
 
 
-def _run(cfg, plan, source, reference: bool, progress: bool, warmup: list) -> Render:
+def _run(cfg, plan, source, reference: bool, progress: bool, warmup: list, runner) -> Render:
     from lightcuts import __version__
     from lightcuts.api.passes import render_passes
     from lightcuts.commands.common import progress_bar, render_settings
@@ -124,8 +132,8 @@ def _run(cfg, plan, source, reference: bool, progress: bool, warmup: list) -> Re
 
     t0 = time.perf_counter()
     scene = plan.scene()
-    if plan.caster.trait("warm_render_kernel", False):
-        # None where the render kernel is cached
+    if runner is None and plan.caster.trait("warm_render_kernel", False):
+        # None where the render kernel is cached (a cluster's workers load it themselves)
         warmup.append(start_render_warmup(plan.integrator.trait("kernels")))
     caster = plan.make_caster(scene)
     envmap = plan.environment()
@@ -146,8 +154,9 @@ def _run(cfg, plan, source, reference: bool, progress: bool, warmup: list) -> Re
         finish_warmup(warmup[0] if warmup else None)
         wait.append(time.perf_counter() - t0)
 
-    passes = render_passes(cfg, plan, scene, caster, envmap, desc=f"{cfg.name}: lightcuts", progress=progress,
-                           lights=light_sets, trees=trees, before_render=finish)
+    render = render_passes if runner is None else runner.passes
+    passes = render(cfg, plan, scene, caster, envmap, desc=f"{cfg.name}: lightcuts", progress=progress,
+                    lights=light_sets, trees=trees, before_render=finish)
     result = passes.result0
     t_render = passes.render_seconds
     t_jit = wait[0] + passes.load_seconds
@@ -193,15 +202,22 @@ def _run(cfg, plan, source, reference: bool, progress: bool, warmup: list) -> Re
         "machine": platform.machine(),
     }
     ref_image = None
-    if reference:
+    if reference and runner is not None:
+        t0 = time.perf_counter()
+        ref = runner.reference(cfg, plan, scene, light_sets, envmap, f"{cfg.name}: reference", progress)
+        t_ref = time.perf_counter() - t0
+    elif reference:
         with progress_bar(rows, f"{cfg.name}: reference", not progress) as bar:
             t0 = time.perf_counter()
             ref = plan.integrator.trait("reference")(scene, caster, light_sets, progress=bar.update, **common)
             t_ref = time.perf_counter() - t0
+    if reference:
         ref_image = ref.image
         report["reference"] = {"render_seconds": t_ref, "shadow_rays": int(ref.shadow_rays),
                                "speedup": t_ref / max(t_render, 1e-9),
                                "relative_error": relative_error(passes.image, ref.image)}
+    if runner is not None:
+        report["cluster"] = runner.record()
     return Render(cfg, passes.image, passes.cut_size, report, ref_image)
 
 

@@ -32,6 +32,18 @@ def render_settings(cfg, camera, envmap=None) -> dict:
                 aperture=cfg.camera.aperture, focus_distance=cfg.camera.focus_distance)
 
 
+def image_settings(cfg, camera, envmap, integrator) -> dict:
+    """:func:`render_settings` and, for an integrator with the ``converging`` trait, the config's
+    ``render.compensation``, ``render.representatives`` and ``render.continuation_rays``: every
+    keyword of the image's ``integrator.obj`` call but eps, max_cut, progress and the integrator's
+    own parameters."""
+    settings = render_settings(cfg, camera, envmap)
+    if integrator.trait("converging", False):
+        settings.update(compensation=cfg.render.compensation, representatives=cfg.render.representatives,
+                        continuation_rays=cfg.render.continuation_rays)
+    return settings
+
+
 def render_timed(cfg, scene, caster, lights: dict, trees: dict, envmap=None, desc: str = "lightcuts",
                  no_progress: bool = False, integrator=None, load: bool = True):
     """The config's image: ``(result, seconds, load_seconds)``. The render kernel is loaded (or
@@ -48,10 +60,7 @@ def render_timed(cfg, scene, caster, lights: dict, trees: dict, envmap=None, des
     if integrator is None:
         integrator = INTEGRATORS.resolve(cfg.render.integrator, "render.integrator")
     render_image = integrator.obj
-    settings = render_settings(cfg, scene.camera, envmap)
-    if integrator.trait("converging", False):
-        settings.update(compensation=cfg.render.compensation, representatives=cfg.render.representatives,
-                        continuation_rays=cfg.render.continuation_rays)
+    settings = image_settings(cfg, scene.camera, envmap, integrator)
     crop = cfg.render.crop
     x0, y0 = (0, 0) if crop is None else crop[:2]
     rows = scene.camera.height if crop is None else crop[3] - crop[1]

@@ -20,7 +20,9 @@ missing or changed; ``--force`` recomputes everything.
 The run itself is :func:`lightcuts.compare`'s (:mod:`lightcuts.api.comparing`: rows, reference,
 writer; the store is :mod:`lightcuts.report.compare_store`, the Mitsuba study
 :mod:`lightcuts.mitsuba.study`); this module parses the options, resolves the rows and checks
-``--diff`` and the output folder before any work, then saves and prints the table.
+``--diff`` and the output folder before any work, then saves and prints the table. With ``--workers N``
+or ``--scheduler ADDRESS`` the reference and the rows run as tasks on a Dask cluster
+(:mod:`lightcuts.distributed.studies`), with the same values and the same row store.
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ from pathlib import Path
 from lightcuts.api.comparing import (ALLOWED, DEFAULT_MITSUBA_SPP, DEFAULT_PIXELS,  # noqa: F401
                                      names, resolve_rows, sample_pixels)
 from lightcuts.commands.common import add_set
+from lightcuts.distributed.options import add_cluster_options, cluster_spec
 from lightcuts.errors import LightcutsError
 from lightcuts.limits import MAX_PASSES
 
@@ -61,6 +64,7 @@ def add_parser(sub) -> None:
     p.add_argument("--out", default=None, help="output folder (default renders/<name>/compare)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     add_set(p)
+    add_cluster_options(p)
     p.set_defaults(func=run)
 
 
@@ -102,10 +106,23 @@ def run_compare(args) -> dict:
                            "--out" if args.out else "name", ALLOWED)
     width, height = image_size(cfg)
     pixels = sample_pixels(width, height, cfg.render.crop, args.pixels, cfg.seed) if args.pixels else None
-    result = compare_run(cfg, plans, labels, pixels, RowStore(out / "rows", args.force), source=str(Path(args.config)),
-                         diff=diff, mitsuba_spp=args.mitsuba_spp if args.mitsuba else None,
-                         mitsuba_passes=args.mitsuba_passes,
-                         progress=not args.no_progress)
+    spec = cluster_spec(args)
+
+    def compare(runner=None):
+        return compare_run(cfg, plans, labels, pixels, RowStore(out / "rows", args.force),
+                           source=str(Path(args.config)), diff=diff,
+                           mitsuba_spp=args.mitsuba_spp if args.mitsuba else None,
+                           mitsuba_passes=args.mitsuba_passes, progress=not args.no_progress, runner=runner)
+
+    if spec is None:
+        result = compare()
+    else:
+        from lightcuts.distributed.runner import ClusterRunner
+        from lightcuts.distributed.session import session_for
+
+        with session_for(spec, plans[0].integrator.trait("kernels")) as session:
+            runner = ClusterRunner(session)
+            result = compare(runner)
     result.save(out)
     print(result.markdown(), end="")
     print(f"-> {out}")

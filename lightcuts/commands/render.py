@@ -5,7 +5,9 @@ Outputs in ``renders/<name>/`` (or ``--out``), written as one set (:func:`lightc
 (false-colour cut size per pixel), ``report.json``; with ``--reference`` also ``reference.exr`` and
 ``reference.png``, and the lightcuts-vs-reference error in the report. The run itself is
 :func:`lightcuts.render`'s (:mod:`lightcuts.api.rendering`); this module parses the options, checks the
-output folder before any work, saves and prints the summary line.
+output folder before any work, saves and prints the summary line. With ``--workers N`` or
+``--scheduler ADDRESS`` the image is rendered as tiles on a Dask cluster (:mod:`lightcuts.distributed`),
+the same bytes.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from pathlib import Path
 
 from lightcuts.commands.common import add_set
 from lightcuts.config import load_config
+from lightcuts.distributed.options import add_cluster_options, cluster_spec
 
 
 def add_parser(sub) -> None:
@@ -24,6 +27,7 @@ def add_parser(sub) -> None:
                    help="also render the brute-force reference (every light, every pixel) and compare")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     add_set(p)
+    add_cluster_options(p, tiles=True)
     p.set_defaults(func=run)
 
 
@@ -44,7 +48,16 @@ def run_render(args) -> dict:
         check_reference(cfg)
     out_dir = check_output_dir(Path(args.out) if args.out else Path("renders") / cfg.name,
                                "--out" if args.out else "name")
-    result = render_run(cfg, plan, str(Path(args.config)), args.reference, not args.no_progress)
+    spec = cluster_spec(args)
+    if spec is None:
+        result = render_run(cfg, plan, str(Path(args.config)), args.reference, not args.no_progress)
+    else:
+        from lightcuts.distributed.runner import ClusterRunner
+        from lightcuts.distributed.session import session_for
+
+        with session_for(spec, plan.integrator.trait("kernels")) as session:
+            runner = ClusterRunner(session, spec.tile_size)
+            result = render_run(cfg, plan, str(Path(args.config)), args.reference, not args.no_progress, runner)
     result.save(out_dir)
     print(f"{result.summary()} -> {out_dir}")
     return result.report

@@ -25,16 +25,23 @@ actual count. Timings are wall-clock on a possibly shared machine: compare build
 With ``--gather 1,4,16,64,256`` the command instead renders the config's own image at each number
 of gather points per pixel with the lightcuts and the multidimensional integrator
 (:mod:`lightcuts.commands.scaling_gather`): ``gather_scaling.csv`` and ``gather_scaling.png``.
+
+With ``--workers N`` or ``--scheduler ADDRESS`` (not with ``--gather``) the points run as tasks on a
+Dask cluster (:func:`lightcuts.distributed.studies.scaling_points`): the VPLs of each count traced on a
+worker, each (count, builder) timed there with the worker's share of the cores; counts, depths and
+cuts are those of the local run.
 """
 
 from __future__ import annotations
 
+import functools
 import time
 from pathlib import Path
 
 import numpy as np
 
 from lightcuts.commands.common import add_set, progress_bar
+from lightcuts.distributed.options import add_cluster_options, cluster_spec
 from lightcuts.errors import LightcutsError
 
 
@@ -60,6 +67,7 @@ def add_parser(sub) -> None:
                    help=f"timed builds per point (median reported; default {REPEATS})")
     p.add_argument("--out", default=None, help="output folder (default renders/<name>-scaling)")
     add_set(p)
+    add_cluster_options(p)
     p.set_defaults(func=run)
 
 
@@ -118,6 +126,10 @@ def run_scaling(args) -> list[dict]:
     if getattr(args, "gather", None) is not None:
         from lightcuts.commands.scaling_gather import run_gather
 
+        if cluster_spec(args) is not None:
+            raise LightcutsError("--gather: the gather study runs on this machine only; leave out --workers and "
+                                 "--scheduler")
+
         return run_gather(args, parse_sizes(args.gather, "--gather"))
     from lightcuts.commands.plan import plan_run
     from lightcuts.config import load_config
@@ -139,29 +151,33 @@ def run_scaling(args) -> list[dict]:
     plan = plan_run(cfg, render=render, tree=specs[0])
     out = check_output_dir(Path(args.out) if args.out else Path("renders") / f"{cfg.name}-scaling",
                            "--out" if args.out else "name")
+    point_cfgs = [load_config(args.config, base + [f"lights.indirect.count={n}"]) for n in sizes]
+    spec_cluster = cluster_spec(args)
+    point = functools.partial(scaling_point, repeats=repeats, render=render)
+    no_progress = getattr(args, "no_progress", False)
     scene = plan.scene()
-    caster = plan.make_caster(scene)
-
-    rows, render_rows = [], []
-    warmed = set()
-    with progress_bar(len(sizes) * len(specs), "scaling", getattr(args, "no_progress", False), unit="tree") as bar:
-        for n in sizes:
-            plan_n = plan_run(load_config(args.config, base + [f"lights.indirect.count={n}"]), tree=specs[0])
-            bar.set_postfix_str(f"tracing {n} VPLs")
-            lights = plan_n.lights(scene, caster)["oriented"]
-            for spec in specs:
-                bar.set_postfix_str(f"N={len(lights)} {spec.name}")
-                if spec.name not in warmed:  # numba compiles (or loads its cache) on the first call
-                    time_builder(lights, spec, 1, cfg.seed)
+    if spec_cluster is None:
+        caster = plan.make_caster(scene)
+        points = []
+        warmed = set()
+        with progress_bar(len(sizes) * len(specs), "scaling", no_progress, unit="tree") as bar:
+            for pcfg in point_cfgs:
+                bar.set_postfix_str(f"tracing {pcfg.lights.indirect.count} VPLs")
+                lights = point_lights(pcfg, scene, caster)
+                for spec in specs:
+                    bar.set_postfix_str(f"N={len(lights)} {spec.name}")
+                    points.append(point(pcfg, scene, caster, lights, spec, spec.name not in warmed))
                     warmed.add(spec.name)
-                med, best, tree = time_builder(lights, spec, repeats, cfg.seed)
-                rows.append(dict(n_requested=n, n_lights=len(lights), builder=spec.name, median_s=med, min_s=best,
-                                 repeats=repeats, depth=tree.depth()))
-                if render:
-                    bar.set_postfix_str(f"N={len(lights)} {spec.name}: rendering")
-                    render_rows.append(dict(n_requested=n, n_lights=len(lights), builder=spec.name,
-                                            **_render_stats(cfg, scene, caster, lights, tree)))
-                bar.update(1)
+                    bar.update(1)
+    else:
+        from lightcuts.distributed.runner import ClusterRunner
+        from lightcuts.distributed.session import session_for
+
+        with session_for(spec_cluster, plan.integrator.trait("kernels") if render else None) as session:
+            runner = ClusterRunner(session)
+            points = runner.scaling_points(cfg, scene, point_cfgs, specs, point_lights, point, not no_progress)
+    rows = [p[0] for p in points]
+    render_rows = [p[1] for p in points if p[1] is not None]
     metric = next((s.metric.name for s in specs if s.metric is not None), None)
     with output_set(out) as tmp:
         save_csv(tmp / "scaling.csv", rows, CSV_FIELDS)
@@ -176,6 +192,30 @@ def run_scaling(args) -> list[dict]:
         print(format_render_table(render_rows))
     print(f"-> {out}")
     return rows + render_rows
+
+
+def point_lights(point_cfg, scene, caster):
+    """The oriented VPLs of one light count (``point_cfg``: the config with that
+    ``lights.indirect.count``)."""
+    from lightcuts.commands.plan import plan_run
+
+    return plan_run(point_cfg).lights(scene, caster)["oriented"]
+
+
+def scaling_point(point_cfg, scene, caster, lights, spec, warm: bool, repeats: int, render: bool) -> tuple:
+    """One (light count, builder) point: (scaling.csv row, render_scaling.csv row or None). ``warm``:
+    build once untimed first (numba compiles or loads the builder's kernels on its first call)."""
+    seed = point_cfg.seed
+    if warm:
+        time_builder(lights, spec, 1, seed)
+    med, best, tree = time_builder(lights, spec, repeats, seed)
+    n = point_cfg.lights.indirect.count
+    row = dict(n_requested=n, n_lights=len(lights), builder=spec.name, median_s=med, min_s=best, repeats=repeats,
+               depth=tree.depth())
+    if not render:
+        return row, None
+    return row, dict(n_requested=n, n_lights=len(lights), builder=spec.name,
+                     **_render_stats(point_cfg, scene, caster, lights, tree))
 
 
 def _render_stats(cfg, scene, caster, lights, tree) -> dict:
