@@ -34,29 +34,9 @@ _WARM: dict = {}
 _DROP: set = set()  # runs dropped while a task held the lock: dropped when it ends
 
 
-def run_scene(scene):
-    """The run's scene as a worker keeps it: the same arrays, its bounding box computed once. Every
-    render call (every tile) asks for the bounds twice, and ``Scene.bounds`` scans the faces each time
-    (tens of milliseconds at 200K triangles, a tile's worth of pixels)."""
-    from dataclasses import fields
-
-    from lightcuts.scene.scene import Scene
-
-    class RunScene(Scene):
-        @property
-        def bounds(self):
-            if "run_bounds" not in self._cache:
-                self._cache["run_bounds"] = Scene.bounds.fget(self)
-            return self._cache["run_bounds"].copy()
-
-    RunScene.__qualname__ = RunScene.__name__ = "Scene"
-    values = {f.name: getattr(scene, f.name) for f in fields(Scene) if f.init}
-    return RunScene(**{**values, "_cache": dict(scene._cache)})
-
-
 @dataclass
 class Run:
-    """One run's state on this worker: the plan of its config, its scene (:func:`run_scene`), environment
+    """One run's state on this worker: the plan of its config, its scene, environment
     map and the ray caster built over the scene; ``warmed``: the builders whose kernels a task has loaded."""
 
     plan: object
@@ -146,7 +126,6 @@ def run_state(token: str, cfg, scene, envmap) -> Run:
 
     t0 = time.perf_counter()
     plan = plan_run(cfg)  # the client checked the config; its caster need not render (scaling)
-    scene = run_scene(scene)
     caster = plan.make_caster(scene)
     warm(plan.integrator.trait("kernels"))
     run = Run(plan, scene, envmap, caster, time.perf_counter() - t0)
