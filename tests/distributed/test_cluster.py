@@ -422,3 +422,28 @@ def test_ctrl_c_cancels_the_tasks_and_leaves_no_worker_process(cluster, tmp_path
             time.sleep(0.1)
         assert cluster.client.run_on_scheduler(count) == 0
     assert not (tmp_path / "out").exists()
+
+
+@SPAWNS
+def test_a_textured_scene_gives_the_local_bytes(cluster, tmp_path):
+    """Textures travel with the scene: a textured floor under an area light, with indirect VPLs (whose
+    colours come from the texture), tiled on the cluster as rendered locally."""
+    from PIL import Image
+
+    from lightcuts.config import load_config
+
+    rng = np.random.default_rng(0)
+    Image.fromarray(rng.integers(0, 256, size=(8, 8, 3), dtype=np.uint8)).save(tmp_path / "t.png")
+    (tmp_path / "floor.obj").write_text(
+        "mtllib floor.mtl\nv -2 0 -2\nv 2 0 -2\nv 2 0 2\nv -2 0 2\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"
+        "usemtl m\nf 1/1 3/3 2/2\nf 1/1 4/4 3/3\n")
+    (tmp_path / "floor.mtl").write_text("newmtl m\nKd 0.9 0.9 0.9\nmap_Kd t.png\n")
+    (tmp_path / "run.yaml").write_text(
+        "scene:\n  meshes: [{file: floor.obj}]\n"
+        "  emitters: [{position: [0, 1.5, 0], normal: [0, -1, 0], size: [1, 1], radiance: [5, 5, 5]}]\n"
+        "camera: {position: [0, 3, 3], look_at: [0, 0, 0], resolution: [40, 30]}\n"
+        "lights: {direct: {count: 64}, indirect: {count: 500}}\n")
+    cfg = load_config(tmp_path / "run.yaml")
+    with session(cluster) as s:
+        r = render(cfg, ClusterRunner(s, 16))
+    assert r.image.mean() > 0 and same_pixels(r, render(cfg))
