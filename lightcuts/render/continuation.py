@@ -26,7 +26,7 @@ from numba import njit
 
 from lightcuts.accel.kernel_api import intersect
 from lightcuts.hashing import mix64
-from lightcuts.render.cut import lightcut, luminance
+from lightcuts.render.cut import lightcut
 from lightcuts.render.shading import facing_normal
 from lightcuts.sampling import reflect, sample_brdf
 from lightcuts.scene.textures import albedo_at

@@ -218,7 +218,7 @@ def test_a_tls_scheduler_with_the_tls_files(tmp_path, capsys, monkeypatch):
     one line naming --scheduler."""
     if subprocess.run(["which", "openssl"], capture_output=True).returncode != 0:
         pytest.skip("needs the openssl command to make certificates")
-    from distributed import Client, LocalCluster
+    from distributed import LocalCluster
     from distributed.security import Security
 
     cert, key = _certificate(tmp_path, "cluster")
