@@ -99,9 +99,10 @@ def prepare(triangles: int, resolution=FRAME):
 
 def tile_seconds(cfg, plan, scene, envmap, lights, trees, windows, spp: int = 1) -> tuple[list, float]:
     """(single-thread seconds of each window, the worker's setup seconds), each tile rendered as a
-    worker renders it (lightcuts.distributed.runner.tile_task's call, on the worker's scene)."""
+    worker renders it (lightcuts.distributed.runner.tile_task's call: the run's caster and light
+    forest made once, then the crop window)."""
     from lightcuts.commands.common import image_settings
-    from lightcuts.distributed.worker import run_scene
+    from lightcuts.distributed.worker import Run
     from lightcuts.parallel import num_threads
 
     c = cfg.model_copy(update={"render": cfg.render.model_copy(update={"spp": spp})})
@@ -109,15 +110,16 @@ def tile_seconds(cfg, plan, scene, envmap, lights, trees, windows, spp: int = 1)
     out = []
     with num_threads(1):
         t0 = time.perf_counter()
-        wscene = run_scene(scene)
-        caster = plan.make_caster(wscene)
+        caster = plan.make_caster(scene)
+        run = Run(plan, scene, envmap, caster, 0.0)
+        forest = {"forest": run.forest(lights, trees)} if integ.trait("forest", False) else {}
         setup = time.perf_counter() - t0
-        settings = image_settings(c, wscene.camera, envmap, integ)
-        integ.obj(wscene, caster, lights, trees, eps=c.render.eps, max_cut=c.render.max_cut,
+        settings = {**image_settings(c, scene.camera, envmap, integ), **forest}
+        integ.obj(scene, caster, lights, trees, eps=c.render.eps, max_cut=c.render.max_cut,
                   **{**settings, "crop": (0, 0, 1, 1)}, **integ.params)  # the kernel loaded
         for w in windows:
             t0 = time.perf_counter()
-            integ.obj(wscene, caster, lights, trees, eps=c.render.eps, max_cut=c.render.max_cut,
+            integ.obj(scene, caster, lights, trees, eps=c.render.eps, max_cut=c.render.max_cut,
                       **{**settings, "crop": w}, **integ.params)
             out.append(time.perf_counter() - t0)
         caster.close()

@@ -18,10 +18,9 @@ from lightcuts.errors import LightcutsError
 
 #: Seconds to reach the scheduler (and for its first worker) before giving up.
 DEFAULT_CONNECT_TIMEOUT = 10.0
-#: Side of a square image tile, pixels: a render call costs a worker about 0.04 s besides its pixels
-#: (the light forest is built per call), and the last tiles leave workers idle, so tiles hold about a
-#: second of work or more; 128 was the fastest on one machine, 32 in the model of 64 machines and more
-#: (docs/performance.md, "Distributed renders").
+#: Side of a square image tile, pixels: every tile is a task (about 2 ms of the scheduler's time) and
+#: the last tiles leave workers idle; 128 was the fastest on one machine, 32 in the model of 64
+#: machines and more (docs/performance.md, "Distributed renders").
 DEFAULT_TILE_SIZE = 128
 #: The largest tile side and worker count the flags take.
 MAX_TILE_SIZE = 8192

@@ -40,10 +40,11 @@ def tile_task(token, cfg, scene, envmap, lights, trees, window, reference: bool)
         from lightcuts.commands.common import image_settings, render_settings
 
         integ = run.plan.integrator
+        forest = {"forest": run.forest(lights, None if reference else trees)} if integ.trait("forest", False) else {}
         if reference:
-            settings = {**render_settings(cfg, run.scene.camera, envmap), "crop": window}
+            settings = {**render_settings(cfg, run.scene.camera, envmap), "crop": window, **forest}
             return integ.trait("reference")(run.scene, run.caster, lights, **settings)
-        settings = {**image_settings(cfg, run.scene.camera, envmap, integ), "crop": window}
+        settings = {**image_settings(cfg, run.scene.camera, envmap, integ), "crop": window, **forest}
         return integ.obj(run.scene, run.caster, lights, trees, eps=cfg.render.eps, max_cut=cfg.render.max_cut,
                          **settings, **integ.params)
 

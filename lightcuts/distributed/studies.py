@@ -42,8 +42,11 @@ def reference_task(token, cfg, scene, envmap, lights, pixels) -> dict:
     def body(run):
         from lightcuts.commands.common import render_settings
 
+        integ = run.plan.integrator
         settings = {**render_settings(cfg, run.scene.camera, envmap), "crop": None}
-        ref = run.plan.integrator.trait("reference")(run.scene, run.caster, lights, pixels=pixels, **settings)
+        if integ.trait("forest", False):
+            settings["forest"] = run.forest(lights, None)
+        ref = integ.trait("reference")(run.scene, run.caster, lights, pixels=pixels, **settings)
         return {"image": ref.image[:, 0], "shadow_rays": int(ref.shadow_rays)}
 
     value, info = in_run(token, cfg, scene, envmap, body)

@@ -231,7 +231,7 @@ def shadow_ray_offset(scene) -> float:
 
 def _render(scene, caster, lights, trees, camera, spp, eps, max_cut, clamp, clamp_min_distance, envmap, seed,
             crop, progress, reference, visibility, pixels=None, compensation=False,
-            representatives="fixed", continuation_rays=1) -> RenderResult:
+            representatives="fixed", continuation_rays=1, forest=None) -> RenderResult:
     t_start = time.perf_counter()
     camera = camera if camera is not None else scene.camera
     cam = camera_params(camera)
@@ -265,7 +265,8 @@ def _render(scene, caster, lights, trees, camera, spp, eps, max_cut, clamp, clam
     if kc is None:
         raise LightcutsError(f"render.ray_caster: {type(caster).__name__} cannot be called from kernels; "
                              f"use a kernel-callable caster such as 'embree'")
-    forest = build_forest(lights, None if reference else trees)
+    if forest is None:
+        forest = build_forest(lights, None if reference else trees)
     spp, max_cut, seed = int(spp), int(max_cut), int(seed)
     sx, sy = strata(spp)
     diag = scene.diagonal
@@ -314,7 +315,7 @@ def render_image(scene, caster, lights: dict, trees: dict, camera=None, spp: int
                  max_cut: int = 1000, clamp: bool = True, clamp_min_distance: float = 0.05, envmap=None,
                  seed: int = 0, crop=None, progress: Callable[[int], object] | None = None,
                  reference: bool = False, visibility: bool = True, pixels=None, compensation: bool = False,
-                 representatives: str = "fixed", continuation_rays: int = 1) -> RenderResult:
+                 representatives: str = "fixed", continuation_rays: int = 1, forest=None) -> RenderResult:
     """Render with lightcuts (or, with ``reference=True``, every light at every pixel).
 
     scene : lightcuts.scene.Scene; caster : a kernel-callable ray caster (``kernel_caster``: ``embree``,
@@ -341,22 +342,24 @@ def render_image(scene, caster, lights: dict, trees: dict, camera=None, spp: int
         eye ray, lightcuts.render.cut.stochastic_estimate)
     continuation_rays : with compensation, the continuations averaged per eye ray (1 to
         MAX_CONTINUATION_RAYS): less noise in the compensated light for one primary cut
+    forest : ``build_forest(lights, trees)`` (for the reference, ``build_forest(lights, None)``) made
+        once for several calls over the same lights, e.g. the tiles of one image; None: built here
 
     The caster must stay open during the call. LightcutsError for invalid parameters or inputs.
     """
     return _render(scene, caster, lights, trees, camera, spp, eps, max_cut, clamp, clamp_min_distance, envmap,
                    seed, crop, progress, reference, visibility, pixels, compensation, representatives,
-                   continuation_rays)
+                   continuation_rays, forest)
 
 
 def render_reference(scene, caster, lights: dict, camera=None, spp: int = 1, clamp: bool = True,
                      clamp_min_distance: float = 0.05, envmap=None, seed: int = 0, crop=None,
                      progress: Callable[[int], object] | None = None, visibility: bool = True,
-                     pixels=None) -> RenderResult:
+                     pixels=None, forest=None) -> RenderResult:
     """The brute-force reference: the same eye rays and shading as :func:`render_image`, every light
     at every hit with one shadow ray each (no trees). Arguments as :func:`render_image`."""
     return _render(scene, caster, lights, None, camera, spp, 0.0, 1, clamp, clamp_min_distance, envmap, seed,
-                   crop, progress, True, visibility, pixels)
+                   crop, progress, True, visibility, pixels, forest=forest)
 
 
 def warm_kernels() -> None:

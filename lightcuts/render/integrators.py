@@ -17,7 +17,9 @@ the traits ``reference`` (the brute-force function over the same samples, same a
 renders a thin lens; the plan refuses ``camera.aperture > 0`` otherwise) and ``cut_unit`` (what
 its cut sizes count, as report.json names it), and may declare ``converging`` (it takes
 ``compensation`` and ``representatives``: ``render.compensation`` and ``render.representatives``;
-the plan refuses them otherwise) and ``kernels``: the module whose
+the plan refuses them otherwise), ``forest`` (it and its reference take ``forest``, the
+lightcuts.render.forest.build_forest of the same lights and trees, made once for many calls: a
+cluster's tiles) and ``kernels``: the module whose
 ``_render_band`` kernel its renders use and whose ``warm_kernels()`` compiles it, which the commands
 compile in a second process while the lights and trees are made (lightcuts.commands.warmup).
 
@@ -45,7 +47,7 @@ def _all_lights(scene, caster, lights: dict, *, aperture: float = 0.0, focus_dis
 
 
 @INTEGRATORS.register("lightcuts", reference=_all_lights, lens=False, cut_unit="light nodes per eye ray",
-                      kernels="lightcuts.render.integrator", converging=True)
+                      kernels="lightcuts.render.integrator", converging=True, forest=True)
 def lightcuts(scene, caster, lights: dict, trees: dict, *, aperture: float = 0.0, focus_distance=None, **settings):
     """A lightcut per eye ray through every light tree (Walter et al. 2005): ``render_image``.
 
@@ -65,7 +67,7 @@ def _all_pairs(scene, caster, lights: dict, **settings):
 
 
 @INTEGRATORS.register("multidimensional", reference=_all_pairs, lens=True, cut_unit="pairs per pixel",
-                      kernels="lightcuts.render.multidim.render", params={
+                      kernels="lightcuts.render.multidim.render", forest=True, params={
     "representatives": Param(int, DEFAULT_REPRESENTATIVES, lo=1, hi=64,
                              doc="light representatives per light node (1: the tree's own only)"),
     "gather_representatives": Param(int, 1, lo=1, hi=64,

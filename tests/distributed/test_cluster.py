@@ -447,3 +447,22 @@ def test_a_textured_scene_gives_the_local_bytes(cluster, tmp_path):
     with session(cluster) as s:
         r = render(cfg, ClusterRunner(s, 16))
     assert r.image.mean() > 0 and same_pixels(r, render(cfg))
+
+
+def test_a_run_builds_its_light_forest_once_for_its_tiles():
+    """Run.forest: one forest per (lights, trees) the tiles share, a new one for other lights; the
+    tiles' bytes with it are the local ones (the tests above)."""
+    from lightcuts.distributed.worker import Run
+    from lightcuts.lights.direct import direct_lights
+    from lightcuts.scene.cornell import cornell_box
+    from lightcuts.trees import build_tree
+
+    scene = cornell_box()
+    lights = {"oriented": direct_lights(scene, 64, seed=1)}
+    trees = {"oriented": build_tree(lights["oriented"], "agglomerative", seed=1)}
+    run = Run(None, scene, None, None, 0.0)
+    f = run.forest(lights, trees)
+    assert run.forest(lights, trees) is f and len(f.light_f) == 64
+    assert run.forest(lights, None) is not f and run.forest(lights, None) is run.forest(lights, None)
+    other = {"oriented": direct_lights(scene, 32, seed=2)}
+    assert len(run.forest(other, {"oriented": build_tree(other["oriented"], "agglomerative", seed=1)}).light_f) == 32

@@ -139,7 +139,7 @@ def render_multidimensional(scene, caster, lights: dict, trees: dict | None, cam
                             progress=None, reference: bool = False, visibility: bool = True, pixels=None,
                             aperture: float = 0.0, focus_distance: float | None = None,
                             representatives: int = DEFAULT_REPRESENTATIVES,
-                            gather_representatives: int = 1) -> RenderResult:
+                            gather_representatives: int = 1, forest=None) -> RenderResult:
     """Render with multidimensional lightcuts: one product cut per pixel over its ``spp`` gather points.
 
     Arguments as lightcuts.render.integrator.render_image (``cut_size`` of the result: pairs in the
@@ -151,7 +151,7 @@ def render_multidimensional(scene, caster, lights: dict, trees: dict | None, cam
     gather node, the pair (G, L) using the one of column L mod R (1: the gather tree's own only;
     more decorrelates the pairs' errors at the cost of shadow rays). ``reference=True`` (``trees``
     may be None) sums every gather point with every light instead of cutting: the brute-force
-    reference of the same gather points.
+    reference of the same gather points. forest : as render_image's.
     """
     t_start = time.perf_counter()
     camera = camera if camera is not None else scene.camera
@@ -163,7 +163,8 @@ def render_multidimensional(scene, caster, lights: dict, trees: dict | None, cam
         raise LightcutsError(f"render.ray_caster: {type(caster).__name__} cannot be called from kernels; "
                              f"use a kernel-callable caster such as 'embree'")
     cdata = kc[0]
-    forest = build_forest(lights, None if reference else trees)
+    if forest is None:
+        forest = build_forest(lights, None if reference else trees)
     spp, max_cut, seed = int(spp), int(max_cut), int(seed)
     pair_budget = min(max_cut * spp, MAX_CUT)  # the pixel's cut: max_cut pairs per gather point
     sx, sy = strata(spp)
