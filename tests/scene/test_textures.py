@@ -13,7 +13,8 @@ from PIL import Image
 
 import lightcuts
 from lightcuts.errors import LightcutsError
-from lightcuts.scene.loaders import concatenate_scenes, load_mesh, pbr_to_phong
+from lightcuts.scene.loaders import concatenate_scenes, load_mesh
+from lightcuts.scene.materials import pbr_to_phong
 from lightcuts.scene.scene import Scene
 from lightcuts.scene.textures import (TextureSet, albedo_at, face_texture_means, image_to_linear, srgb_to_linear,
                                       texture_lookup, uv_maps)
