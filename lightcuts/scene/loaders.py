@@ -268,12 +268,12 @@ def concatenate_scenes(scenes: Sequence[Scene], camera: Camera | None = None, na
         camera = next((s.camera for s in scenes if s.camera is not None), None)
     tex = {}
     if any(s.textured for s in scenes):
-        textures = TextureSet()
+        textures, bases = TextureSet.concatenate([s.textures for s in scenes if s.textured])
+        bases = iter(bases)
         ids, uvs = [], []
         for s in scenes:
             if s.textured:
-                base = textures.extend(s.textures)
-                ids.append(np.where(s.texture >= 0, s.texture + base, -1))
+                ids.append(np.where(s.texture >= 0, s.texture + next(bases), -1))
                 uvs.append(s.uv)
             else:
                 ids.append(np.full(s.n_faces, -1, np.int32))

@@ -96,24 +96,32 @@ class TextureSet:
         texels = np.concatenate([np.asarray(im, np.float32).reshape(-1, 3) for im in images]) if images else None
         return cls(texels if texels is not None else np.zeros((0, 3), np.float32), table, names)
 
+    @classmethod
+    def concatenate(cls, sets: list) -> tuple["TextureSet", list]:
+        """One set of every image of ``sets`` in order (one copy of the texels), and the index the
+        first image of each set got in it."""
+        if not sets:
+            return cls(), []
+        bases = np.cumsum([0] + [len(t) for t in sets[:-1]]).tolist()
+        offsets = np.cumsum([0] + [len(t.texels) for t in sets[:-1]])
+        tables = []
+        for t, o in zip(sets, offsets):
+            table = t.table.copy()
+            table[:, TEX_OFFSET] += o
+            tables.append(table)
+        return cls(np.concatenate([t.texels for t in sets]), np.concatenate(tables),
+                   [n for t in sets for n in t.names]), bases
+
     def add(self, image: np.ndarray, name: str) -> int:
         """Append an (H, W, 3) linear image; returns its index."""
-        return self.extend(TextureSet.of([image], [name]))
+        merged, (_, k) = TextureSet.concatenate([self, TextureSet.of([image], [name])])
+        self.texels, self.table, self.names = merged.texels, merged.table, merged.names
+        return k
 
     def image(self, k: int) -> np.ndarray:
         """(H, W, 3) float32 view of image k."""
         o, w, h = (int(x) for x in self.table[k])
         return self.texels[o:o + w * h].reshape(h, w, 3)
-
-    def extend(self, other: "TextureSet") -> int:
-        """Append every image of ``other``; returns the index its first image got."""
-        base = len(self)
-        table = other.table.copy()
-        table[:, TEX_OFFSET] += len(self.texels)
-        self.texels = np.concatenate([self.texels, other.texels])
-        self.table = np.concatenate([self.table, table])
-        self.names += other.names
-        return base
 
 
 def uv_maps(vertices: np.ndarray, faces: np.ndarray, uv: np.ndarray) -> np.ndarray:
