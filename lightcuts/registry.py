@@ -92,7 +92,10 @@ class Param:
 
 @dataclass(frozen=True)
 class Entry:
-    """One registered plugin: its name, object, declared parameters and traits."""
+    """One registered plugin: its name, object, declared parameters and traits; ``description`` is
+    one line for listings (given, else the object's ``description``, else its docstring's first
+    paragraph); ``entry_point`` the entry point's value (``mypackage.trees:my_builder``) for an
+    entry loaded from one, else empty."""
 
     name: str
     obj: Any
@@ -100,6 +103,7 @@ class Entry:
     traits: Mapping[str, Any] = field(default_factory=dict)
     description: str = ""
     params: Mapping[str, Param] = field(default_factory=dict)
+    entry_point: str = ""
 
     def trait(self, key: str, default=None):
         return self.traits.get(key, default)
@@ -176,7 +180,7 @@ class Registry:
 
         return add if obj is None else add(obj)
 
-    def _add(self, name, obj, reads, traits, aliases, replace, description, params=None) -> Entry:
+    def _add(self, name, obj, reads, traits, aliases, replace, description, params=None, entry_point="") -> Entry:
         declared = getattr(obj, _DECLARATION, None) or {}
         if self._coerce is not None:
             obj = self._coerce(name, obj)
@@ -194,10 +198,10 @@ class Registry:
         if not replace and (name in self._entries or name in self._aliases):
             raise LightcutsError(f"{self.kind} {name!r} is already registered")
         if description is None:
-            description = (getattr(obj, "description", None) or (getattr(obj, "__doc__", None) or "")
-                           .strip().split("\n")[0])
+            doc = (getattr(obj, "__doc__", None) or "").strip().split("\n\n")[0]
+            description = getattr(obj, "description", None) or " ".join(doc.split())
         entry = Entry(name, obj, frozenset(reads), MappingProxyType(dict(traits)), str(description),
-                      MappingProxyType(declared_params))
+                      MappingProxyType(declared_params), entry_point)
         aliases = dict(aliases) if isinstance(aliases, Mapping) else {a: {} for a in aliases}
         for a, fixed in aliases.items():
             for p, v in fixed.items():
@@ -242,7 +246,7 @@ class Registry:
                 except Exception as exc:  # a broken plugin must not hide the built-in entries
                     raise LightcutsError(f"entry point {ep.name!r} in group {self.group!r} failed to load: "
                                          f"{exc}") from None
-                self._add(ep.name, obj, None, {}, (), False, None)
+                self._add(ep.name, obj, None, {}, (), False, None, entry_point=ep.value)
 
     def names(self) -> list[str]:
         """Sorted names of all entries (built-in and from entry points)."""
@@ -266,6 +270,11 @@ class Registry:
         """Alias -> entry name."""
         self._load()
         return dict(self._aliases)
+
+    def alias_values(self, alias: str) -> Mapping[str, Any]:
+        """The parameter values ``alias`` fixes (``{"maxp": 150}`` for ``octree-150``); empty for a plain alias."""
+        self._load()
+        return self._alias_params.get(alias, MappingProxyType({}))
 
     def resolve(self, spec, key: str) -> Resolved:
         """The plugin ``spec`` names, with its parameters checked and defaults filled in.

@@ -63,7 +63,7 @@ def agglomerative_stats(position, normal, luminance, light_type: str, metric: Me
 
 @BUILDERS.register("agglomerative", reads=("metric", "c"), builtin_metrics_only=True, compare_row=2)
 def agglomerative(position, normal, luminance, light_type: str, metric: Metric, c: float, seed: int):
-    """Locally-ordered agglomerative clustering (Walter et al. 2008, Fig. 4); see the module docstring.
+    """Locally-ordered agglomerative clustering (Walter et al. 2008, Fig. 4): mutual best matches merge in rounds.
 
     position, normal : (N, 3) float64; luminance : (N,) float64 scalar intensity
     light_type : "omni", "oriented" (the only type with a cone term) or "directional"
@@ -75,7 +75,7 @@ def agglomerative(position, normal, luminance, light_type: str, metric: Metric, 
 
 @BUILDERS.register("agglomerative-heap", reads=("metric", "c"), builtin_metrics_only=True, compare_row=1)
 def agglomerative_heap(position, normal, luminance, light_type: str, metric: Metric, c: float, seed: int):
-    """Heap-based agglomerative clustering (Walter et al. 2008, Fig. 3); see the module docstring.
+    """Heap-based agglomerative clustering (Walter et al. 2008, Fig. 3): a lazy min-heap of best matches.
 
     Same arguments and result as :func:`agglomerative`.
     """
