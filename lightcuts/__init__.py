@@ -11,7 +11,8 @@ needs) -> ``lights`` -> ``trees`` -> ``render`` -> ``report`` -> ``mitsuba`` (th
 reference renderer, imported only when used). Above them, ``api`` (the Python API), ``distributed``
 (runs on a Dask cluster, beside the API, imported only with ``--workers`` / ``--scheduler``) and
 ``commands`` (one module per CLI command, each resolving its plan before any work) and ``cli``; below them,
-``config`` (the run schema and its defaults), ``registry`` (plugins) and small helpers. Data travel
+``config`` (the run schema and its defaults), ``registry`` (plugins), ``plugin_docs`` (the plugin
+reference generated from the registries) and small helpers. Data travel
 between stages as flat numpy arrays in small classes (:class:`~lightcuts.scene.Scene`,
 :class:`~lightcuts.lights.LightSet`, :class:`~lightcuts.trees.LightTree`), each saved as ``.npz``;
 docs/architecture.md draws the whole.

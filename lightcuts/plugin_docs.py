@@ -31,7 +31,7 @@ class Kind:
     name : the ``lightcuts plugins KIND`` argument and the marker's NAME (``builders``)
     registry : its :class:`Registry`
     where : the registry's import name, for the reader (``lightcuts.trees.BUILDERS``)
-    key : the config key(s) naming an entry (``tree.builder``)
+    key : the config key naming an entry (``tree.builder``), or keys separated by ``, ``
     default : the entry a config gets when it names none (None: no default)
     """
 
@@ -114,7 +114,8 @@ def aliases_of(kind: Kind, entry: Entry) -> list[tuple[str, str]]:
 def _header(kind: Kind, code=str) -> str:
     default = f" (default {code(kind.default)})" if kind.default else ""
     group = f"; entry points {code(kind.registry.group)}" if kind.registry.group else ""
-    return f"config key {code(kind.key)}{default}; registry {code(kind.where)}{group}"
+    keys = " or ".join(code(k) for k in kind.key.split(", "))
+    return f"config key {keys}{default}; registry {code(kind.where)}{group}"
 
 
 # ------------------------------------------------------------------------------------------ text
@@ -185,7 +186,7 @@ def kind_markdown(kind: Kind, built_in: bool = False) -> str:
 def index_markdown(kinds: list[Kind], built_in: bool = False) -> str:
     """One table row per kind: its name, registry, config key, default and entry-point group, and
     its entries' names (built_in: :meth:`Kind.entries`)."""
-    rows = [[k.name, _code(k.where), _code(k.key), _code(k.default) if k.default else "",
+    rows = [[k.name, _code(k.where), " or ".join(_code(key) for key in k.key.split(", ")), _code(k.default) if k.default else "",
              _code(k.registry.group) if k.registry.group else "", ", ".join(_code(e.name) for e in k.entries(built_in))]
             for k in kinds]
     return "\n".join(_table(["kind", "registry", "config key", "default", "entry points", "entries"], rows)) + "\n"
