@@ -53,9 +53,10 @@ def random_items(n, rng, kind="random", spread=0.05):
 class Clusters:
     """The active clusters' bounds, tracked from the items through merges, independently of the
     kd-tree: box ``[lo, hi]``, box of normals ``[nlo, nhi]``, summed intensity; cluster i < N is item
-    ``order[i]``, merge m makes cluster N + m."""
+    ``order[i]``, merge m makes cluster N + m. Items are single normals, or boxes of normals
+    ``[normal, normal_hi]`` (clusters made elsewhere)."""
 
-    def __init__(self, lo, hi, normal, intensity, order=None):
+    def __init__(self, lo, hi, normal, intensity, order=None, normal_hi=None):
         n = len(lo)
         order = np.arange(n) if order is None else np.asarray(order)
         k = 2 * n - 1
@@ -64,7 +65,7 @@ class Clusters:
         self.nlo, self.nhi = np.full((k, 3), np.nan), np.full((k, 3), np.nan)
         self.inten = np.full(k, np.nan)
         self.lo[:n], self.hi[:n] = lo[order], hi[order]
-        self.nlo[:n], self.nhi[:n] = normal[order], normal[order]
+        self.nlo[:n], self.nhi[:n] = normal[order], (normal if normal_hi is None else normal_hi)[order]
         self.inten[:n] = intensity[order]
         self.alive = list(range(n))
         self.next = n

@@ -1,6 +1,6 @@
 """Building the kd-tree (``lightcuts/cluster/kd_build.py``).
 
-Properties, on random boxes, points, duplicates and grids:
+Properties, on random boxes, points, duplicates and grids, and on clusters made of them:
 - every cluster is in exactly one leaf, in its leaf's first slots, with its own bounds;
 - the tree is balanced at the median: a node's left child holds half its clusters (rounded down),
   every centre on the left is <= the split <= every centre on the right, the split axis is the
@@ -78,6 +78,16 @@ def test_build_storage_shape_and_bounds(n, seed, kind, spread, leafsize):
     check_storage(kd, cl)
     check_shape(kd, leafsize)
     check_node_bounds(kd, cl, exact=True)
+    # A build over clusters (boxes of normals, not single normals): half the items merged at random.
+    rng = np.random.default_rng(seed)
+    for _ in range(n // 2):
+        cl.merge(*cl.random_pair(rng))
+    ids = cl.alive
+    clusters = Clusters(cl.lo[ids], cl.hi[ids], cl.nlo[ids], cl.inten[ids], normal_hi=cl.nhi[ids])
+    kd, _ = clusters.fresh_kd(np.arange(len(ids)), leafsize)
+    check_storage(kd, clusters)
+    check_shape(kd, leafsize)
+    check_node_bounds(kd, clusters, exact=True)
 
 
 @pytest.mark.parametrize("metric_id,has_cone", METRIC_CASES)
