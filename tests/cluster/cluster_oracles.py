@@ -13,17 +13,14 @@ from lightcuts.cluster.kd_search import _pair_d
 from lightcuts.cluster.kd_tree import (I_ACTIVE, I_FIRST_LEAF, N_EMIN, N_HMIN, N_IMIN, N_LMAX, NE_MIN, NH_MIN, NL_MAX,
                                        S_HI, S_I, S_LO, S_NHI, S_NLO)
 
+from conftest import unit
+
 WALTER2008, WALTER2005, SURFACE_AREA = 0, 1, 2
 #: (metric id, has_cone) of the searches: the light metrics with and without a cone, the surface area.
 METRIC_CASES = [(WALTER2008, True), (WALTER2008, False), (WALTER2005, True), (WALTER2005, False),
                 (SURFACE_AREA, False)]
 #: Cone-term scale of the tests: the cone term weighs about as much as the boxes' spread.
 C = 0.3
-
-
-def unit(v):
-    v = np.asarray(v, np.float64)
-    return v / np.linalg.norm(v, axis=-1, keepdims=True)
 
 
 def random_items(n, rng, kind="random", spread=0.05):

@@ -24,7 +24,7 @@ from hypothesis import strategies as st
 
 from lightcuts.cluster.bounds import EMPTY_HI, EMPTY_LO, box_centre, box_grow, box_union, points_box, union_cone
 
-from cluster_oracles import unit
+from conftest import unit
 
 FAST = settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 

@@ -23,7 +23,8 @@ from hypothesis import strategies as st
 from lightcuts.cluster.dissimilarity import metric_eval
 from lightcuts.cluster.kd_search import _pair_d
 
-from cluster_oracles import C, METRIC_CASES, SURFACE_AREA, WALTER2005, WALTER2008, np_cone_cos, np_metric, unit
+from cluster_oracles import C, METRIC_CASES, SURFACE_AREA, WALTER2005, WALTER2008, np_cone_cos, np_metric
+from conftest import unit
 
 METRICS = (WALTER2008, WALTER2005, SURFACE_AREA)
 FAST = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])

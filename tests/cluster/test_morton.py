@@ -46,6 +46,11 @@ def key_layout(n):
 points = st.integers(1, 200).flatmap(lambda n: st.tuples(st.just(n), st.integers(0, 2**32 - 1), st.booleans()))
 
 
+def on_point_sets(test):
+    """Run ``test(case)`` on hypothesis' point sets ``(n, seed, grid)`` (see :func:`make`) and on two large ones."""
+    return FAST(given(points)(example((700, 1, False))(example((700, 2, True))(test))))
+
+
 def make(n, seed, grid):
     rng = np.random.default_rng(seed)
     p = rng.normal(size=(n, 3)) * [1.0, 1e-3, 50.0] + [0.0, 1e6, -3.0]
@@ -62,10 +67,7 @@ def test_spread_moves_bit_b_to_bit_3b(values):
     assert int(_spread3(np.uint64(2**21 + 5))) == int(_spread3(np.uint64(5)))
 
 
-@FAST
-@given(points)
-@example((700, 1, False))
-@example((700, 2, True))
+@on_point_sets
 def test_keys_are_the_bit_interleave_of_the_quantised_points(case):
     n, seed, grid = case
     p = make(n, seed, grid)
@@ -75,8 +77,7 @@ def test_keys_are_the_bit_interleave_of_the_quantised_points(case):
     assert [int(k) for k in keys] == [(interleave(q[i], bits) << index_bits) | i for i in range(n)]
 
 
-@FAST
-@given(points)
+@on_point_sets
 def test_codes_never_decrease_along_an_axis(case):
     n, seed, grid = case
     p = make(n, seed, grid)
@@ -88,10 +89,7 @@ def test_codes_never_decrease_along_an_axis(case):
     assert (code[i] <= code[j]).all()
 
 
-@FAST
-@given(points)
-@example((700, 1, False))
-@example((700, 2, True))
+@on_point_sets
 def test_the_order_sorts_the_keys_and_keeps_cells_together(case):
     n, seed, grid = case
     p = make(n, seed, grid)
