@@ -38,7 +38,7 @@ def check_shape(kd, leafsize):
     """Median splits along the longest side of each cell, leaves of at most ``leafsize``, least depth."""
     first_leaf = int(kd.info[I_FIRST_LEAF])
     n = int(kd.info[I_BUILT])
-    for _, s0, cnt in leaves(kd):
+    for *_, cnt in leaves(kd):
         assert cnt <= leafsize
     # The least depth: one level fewer would leave a leaf with more than leafsize clusters.
     if first_leaf > 0:
@@ -57,7 +57,7 @@ def check_shape(kd, leafsize):
         left = np.array([centre[c][axis] for c in node_clusters(kd, 2 * k + 1)])
         right = np.array([centre[c][axis] for c in node_clusters(kd, 2 * k + 2)])
         assert len(left) == (len(left) + len(right)) // 2, k
-        # The split is the median centre, the smallest on the right (an empty node: its cell's end).
+        # The split is the median centre, the smallest on the right (an empty node: its cell's lower end).
         split = right.min() if len(right) else clo[axis]
         assert len(left) == 0 or left.max() <= split, k
         assert kd.node_s[k, N_SPLIT] == np.float32(split), k
