@@ -11,6 +11,7 @@ import zlib
 from pathlib import Path
 
 import numpy as np
+from hypothesis import strategies as st
 from PIL import Image
 
 from lightcuts.scene.gltf import make_glb, split_glb
@@ -48,6 +49,22 @@ def png_claiming(width: int, height: int) -> bytes:
     header = struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)
     data = chunk(b"IDAT", zlib.compress(b"\0" * 16))
     return b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + data + chunk(b"IEND", b"")
+
+
+@st.composite
+def image_bytes(draw):
+    """A PNG for fuzzing: a real one, cut short, with a byte flipped, or a bare header claiming a
+    size up to 2**20 x 2**20."""
+    kind = draw(st.sampled_from(["real", "cut", "flipped", "claim"]))
+    if kind == "claim":
+        return png_claiming(draw(st.integers(0, 1 << 20)), draw(st.integers(0, 1 << 20)))
+    png = png_bytes(checkerboard(2, draw(st.integers(1, 4))))
+    if kind == "cut":
+        return png[:draw(st.integers(0, len(png)))]
+    if kind == "flipped":
+        at = draw(st.integers(0, len(png) - 1))
+        return png[:at] + bytes([png[at] ^ draw(st.integers(1, 255))]) + png[at + 1:]
+    return png
 
 
 def quad_obj(folder: Path, mtl: str, texture: np.ndarray | None = None, name: str = "quad",

@@ -192,8 +192,10 @@ class Scene:
                 raise LightcutsError(f"{where}: {int(bad.sum())} triangles emit {problem} "
                                      f"(triangle {i}: {e[i].tolist()})")
         lit = np.flatnonzero(e.max(axis=1) > 0)
+        t = self.vertices[self.faces[lit]]  # the emitters only: most triangles of a large scene are not
         with np.errstate(over="ignore", invalid="ignore"):
-            power = float(np.sum(e[lit].max(axis=1) * self.face_areas[lit]))
+            area = 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)
+            power = float(np.sum(e[lit].max(axis=1) * area))
         if not power <= MAX_EMITTED_POWER * (1 + 1e-12):  # the sum's rounding: 1e30 x 1e30 at 1e30 is in
             raise LightcutsError(f"{where}: emitted power {power:.3g} W/sr (area x radiance, summed over "
                                  f"{len(lit)} emitting triangles) is above {MAX_EMITTED_POWER:g}")

@@ -151,6 +151,16 @@ def test_the_limits_hold_what_the_config_can_place_once():
                             radiance=[1e30, 1e30, 1e30]), key="scene.emitters.3")
 
 
+def test_a_mesh_beyond_the_power_limit_is_named_by_its_key(tmp_path):
+    """A mesh scaled by 1e30 whose config material emits 1e30: 4e90 W/sr from the mesh alone."""
+    from lightcuts.scene.loaders import load_mesh
+
+    (tmp_path / "q.obj").write_text("v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nf 1 2 3\nf 1 3 4\n")
+    with pytest.raises(LightcutsError, match=r"^scene.meshes.4: .*q.obj: emitted power 4e\+90 W/sr"):
+        load_mesh(tmp_path / "q.obj", scale=1e30, material={"emission": [1e30] * 3}, key="scene.meshes.4")
+    assert load_mesh(tmp_path / "q.obj", scale=1e29, material={"emission": [1e30] * 3}).emission.max() == 1e30
+
+
 def test_nan_emission_is_not_taken_for_no_emission():
     """Lights made from a scene with NaN emission (which no loader lets in, but a Scene made by
     hand can hold): the NaN is named, not 'no emissive triangles'."""

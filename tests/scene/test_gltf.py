@@ -22,7 +22,8 @@ from lightcuts.scene.gltf import make_glb
 from lightcuts.scene.loaders import load_mesh
 from lightcuts.scene.materials import pbr_to_phong
 from lightcuts.scene.textures import image_to_linear
-from scene_files import broken_png, checkerboard, png_bytes, png_claiming, quad_gltf, textured_material, write_gltf
+from scene_files import (broken_png, checkerboard, image_bytes, png_bytes, png_claiming, quad_gltf, textured_material,
+                         write_gltf)
 
 KEY = "scene.meshes.2"
 
@@ -130,6 +131,18 @@ def test_a_bad_material_is_one_line_naming_the_file_and_key(tmp_path, images, te
     (tmp_path / "c.png").write_bytes(png_bytes(checkerboard()))
     for ext in ("glb", "gltf"):
         _refused(_textured(tmp_path, images, textures, material, ext), *words)
+
+
+def test_an_emissive_texture_scales_each_triangles_emission_by_its_mean(tmp_path):
+    """emissiveTexture, averaged per triangle, times emissiveFactor x emissiveStrength; with no
+    base colour texture the quad is not textured."""
+    grey = np.full((4, 4, 3), 128, np.uint8)
+    (tmp_path / "g.png").write_bytes(png_bytes(grey))
+    mat = {"emissiveFactor": [1.0, 0.5, 0.25], "emissiveTexture": {"index": 0},
+           "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": 2.0}}}
+    s = load_mesh(_textured(tmp_path, [{"uri": "g.png"}], material=mat))
+    assert not s.textured
+    np.testing.assert_allclose(s.emission, [np.array([2.0, 1.0, 0.5]) * image_to_linear(grey)[0, 0]] * 2, rtol=1e-6)
 
 
 def _corrupt_json_chunk(raw: bytes) -> bytes:
@@ -250,21 +263,6 @@ def _assert_loads_or_names_the_file(path):
     return s
 
 
-@st.composite
-def _image(draw):
-    """A PNG: a real one, cut short, with bytes flipped, or a bare header claiming a size."""
-    kind = draw(st.sampled_from(["real", "cut", "flipped", "claim"]))
-    if kind == "claim":
-        return png_claiming(draw(st.integers(0, 1 << 20)), draw(st.integers(0, 1 << 20)))
-    png = png_bytes(checkerboard(2, draw(st.integers(1, 4))))
-    if kind == "cut":
-        return png[:draw(st.integers(0, len(png)))]
-    if kind == "flipped":
-        at = draw(st.integers(0, len(png) - 1))
-        return png[:at] + bytes([png[at] ^ draw(st.integers(1, 255))]) + png[at + 1:]
-    return png
-
-
 _UNIT = st.floats(0, 1)
 #: Each material field valid, or (for the one field drawn to be wild) any JSON value.
 _FIELDS = {
@@ -276,7 +274,7 @@ _FIELDS = {
 
 @_FUZZ
 @given(values=st.fixed_dictionaries(_FIELDS), wild=st.none() | st.sampled_from(list(_FIELDS)),
-       wild_value=_JSON | st.lists(_NUMBER, min_size=3, max_size=4) | _NUMBER, image=_image(),
+       wild_value=_JSON | st.lists(_NUMBER, min_size=3, max_size=4) | _NUMBER, image=image_bytes(),
        uv=st.lists(st.lists(st.floats(width=32, allow_nan=False, allow_infinity=False) | st.floats(-3, 3),
                             min_size=2, max_size=2), min_size=4, max_size=4),
        ext=st.sampled_from(["glb", "gltf"]))

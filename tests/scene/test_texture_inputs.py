@@ -6,19 +6,20 @@ and named for what they are when they are not files."""
 from __future__ import annotations
 
 import math
+import os
 import time
 import warnings
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import lightcuts
 from lightcuts.errors import LightcutsError
 from lightcuts.scene.loaders import load_mesh
 from lightcuts.scene.textures import TextureSet, face_texture_means, image_to_linear, read_image, texture_lookup
-from scene_files import checkerboard, png_bytes, png_claiming, quad_obj
+from scene_files import checkerboard, image_bytes, png_bytes, png_claiming, quad_obj
 
 _SET = TextureSet()
 _SET.add(np.random.default_rng(1).random((3, 5, 3)).astype(np.float32), "noise")  # 5 wide, 3 high
@@ -45,14 +46,13 @@ def test_any_finite_coordinate_reads_an_interpolation_of_texels_of_its_wrapped_v
 
 
 def test_per_triangle_means_read_huge_coordinates_as_their_wrapped_values():
-    """Whole periods added to a triangle's coordinates (exactly: dyadic values) change nothing."""
-    ts = TextureSet()
-    ts.add(image_to_linear(checkerboard(2, 8)), "c")
+    """Whole periods added to a triangle's coordinates (exactly: dyadic values) change nothing,
+    though the points between its corners are not representable next to the shift."""
     uv = np.array([[[0.125, 0.625], [0.375, 0.625], [0.125, 0.875]]])
     for shift in (3e18, -3e18, 2.0 ** 44):
         base = uv if shift == 2.0 ** 44 else np.zeros_like(uv)  # 3e18 + 0.125 is 3e18
-        np.testing.assert_array_equal(face_texture_means(ts, np.array([0]), base + shift),
-                                      face_texture_means(ts, np.array([0]), base))
+        np.testing.assert_array_equal(face_texture_means(_SET, np.array([0]), base + shift),
+                                      face_texture_means(_SET, np.array([0]), base))
 
 
 def _render(folder, obj: str):
@@ -85,6 +85,14 @@ def test_coordinates_that_overflow_are_refused_naming_the_file(tmp_path, uv, mtl
     with pytest.raises(LightcutsError, match=words) as e:
         load_mesh(p)
     assert str(e.value).startswith(f"scene.meshes.0: {p}: a textured material ") and "\n" not in str(e.value)
+
+
+def test_check_uv_refuses_coordinates_whose_differences_overflow():
+    from lightcuts.scene.textures import check_uv
+
+    check_uv(np.array([[[8e307, 0], [-8e307, 0], [0, 1]]]), "x")
+    with pytest.raises(LightcutsError, match="^x: the texture coordinates of 1 triangles change faster"):
+        check_uv(np.array([[[9e307, 0], [-9e307, 0], [0, 1]]]), "x")
 
 
 def test_a_scale_of_1e308_within_float64_reads_wrapped_texels(tmp_path):
@@ -139,6 +147,7 @@ def test_the_texel_limits_per_image_and_per_scene(tmp_path, monkeypatch):
 
 @pytest.mark.parametrize("make, problem", [(lambda p: p.mkdir(), "is a folder, not a file"),
                                            (lambda p: None, "no such file"),
+                                           (lambda p: os.mkfifo(p), "not a regular file"),  # and no hang
                                            (lambda p: p.write_bytes(b""), "cannot read image")])
 def test_an_image_that_is_not_an_image_file_says_what_it_is(tmp_path, make, problem):
     make(tmp_path / "x.png")
@@ -147,3 +156,36 @@ def test_an_image_that_is_not_an_image_file_says_what_it_is(tmp_path, make, prob
     with pytest.raises(LightcutsError, match="^here: not a regular file"):
         read_image("/dev/null", "here")
     assert read_image(png_bytes(checkerboard()), "here").shape == (32, 32, 3)
+
+
+def test_an_image_a_decoder_gives_as_empty_is_refused(monkeypatch):
+    """Pillow's PNG and PPM readers refuse a size of 0; should any decoder give one, the lookup,
+    which takes texel indices modulo the size, never sees it."""
+    from PIL import Image
+
+    monkeypatch.setattr(Image, "open", lambda *a, **k: Image.new("RGB", (0, 5)))
+    with pytest.raises(LightcutsError, match=r"^here: an empty image \(0 x 5 texels\)"):
+        read_image(b"anything", "here")
+
+
+#: Texture coordinates and option values: small, any finite, huge (NaN and infinity: tested above).
+_VT = st.floats(-3, 3).map(repr) | st.floats(allow_nan=False, allow_infinity=False).map(repr) \
+    | st.sampled_from(["3e18", "-3e18", "1e308", "-1e308"])
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(uv=st.lists(st.tuples(_VT, _VT), min_size=4, max_size=4), scale=st.none() | st.tuples(_VT, _VT),
+       offset=st.none() | st.tuples(_VT, _VT), image=image_bytes())
+def test_fuzz_obj_texture_coordinates_options_and_images(tmp_path, uv, scale, offset, image):
+    """A map_Kd quad with any ``vt`` values, ``-s`` and ``-o`` options and image: it loads, with
+    finite texture coordinates and uv maps, or is one LightcutsError naming the file."""
+    (tmp_path / "tex.png").write_bytes(image)
+    options = "".join(f"-{k} {a} {b} 1 " for k, ab in (("s", scale), ("o", offset)) if ab is not None for a, b in [ab])
+    p = quad_obj(tmp_path, f"newmtl m\nmap_Kd {options}tex.png\n", uv=[f"{a} {b}" for a, b in uv])
+    try:
+        s = load_mesh(p)
+    except LightcutsError as exc:
+        assert str(exc).startswith(f"scene.meshes.0: {p}: ") and "\n" not in str(exc)
+        return
+    assert s.textured and np.all(np.isfinite(s.uv)) and np.all(np.isfinite(s.texture_data()[1]))
+    assert np.all(np.isfinite(s.textures.texels))
