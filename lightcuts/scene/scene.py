@@ -184,14 +184,16 @@ class Scene:
         the emitters) at most ``MAX_EMITTED_POWER`` (lightcuts.limits): what every light made
         from the scene needs to stay within the light limits. ``where`` names the source."""
         e = self.emission
-        for bad, problem in ((~np.all(np.isfinite(e), axis=1), "NaN or infinite radiance"),
-                             (np.any(e < 0, axis=1), "negative radiance"),
-                             (np.any(e > MAX_RADIANCE, axis=1), f"radiance above {MAX_RADIANCE:g}")):
-            if bad.any():
-                i = int(np.flatnonzero(bad)[0])
-                raise LightcutsError(f"{where}: {int(bad.sum())} triangles emit {problem} "
-                                     f"(triangle {i}: {e[i].tolist()})")
-        lit = np.flatnonzero(e.max(axis=1) > 0)
+        top = np.maximum(np.maximum(e[:, 0], e[:, 1]), e[:, 2])  # NaN propagates; faster than max(axis=1)
+        if not (np.isfinite(top).all() and e.min(initial=0.0) >= 0 and top.max(initial=0.0) <= MAX_RADIANCE):
+            for bad, problem in ((~np.all(np.isfinite(e), axis=1), "NaN or infinite radiance"),
+                                 (np.any(e < 0, axis=1), "negative radiance"),
+                                 (np.any(e > MAX_RADIANCE, axis=1), f"radiance above {MAX_RADIANCE:g}")):
+                if bad.any():
+                    i = int(np.flatnonzero(bad)[0])
+                    raise LightcutsError(f"{where}: {int(bad.sum())} triangles emit {problem} "
+                                         f"(triangle {i}: {e[i].tolist()})")
+        lit = np.flatnonzero(top > 0)
         t = self.vertices[self.faces[lit]]  # the emitters only: most triangles of a large scene are not
         with np.errstate(over="ignore", invalid="ignore"):
             area = 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)
