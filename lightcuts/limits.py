@@ -13,6 +13,16 @@ MAX_PIXELS : the largest image (and environment map), width x height: 2**25 pixe
 MAX_EXPOSURE : the largest |render.exposure| in stops, so that 2**exposure is a normal float64
 MAX_PASSES : the most ``render.passes`` (each pass makes its lights and trees again)
 MAX_CONTINUATION_RAYS : the most ``render.continuation_rays`` (compensation continuations per eye ray)
+MAX_TEXELS : the largest texture, width x height texels: 2**26, 67.1 million (e.g. 8192 x 8192);
+    textures are kept as float32 linear RGB, 12 bytes a texel, so 768 MiB
+MAX_SCENE_TEXELS : the most texels of all the textures a scene reads together: 2**27 (1.5 GiB)
+MAX_RADIANCE : the largest emitted radiance of a triangle, per channel, W/(m^2 sr): MAX_COORD, the
+    bound of every config number (so of ``emission`` and ``radiance`` there), for files too
+MAX_EMITTED_POWER : the largest sum over a scene's emitting triangles of area x radiance (largest
+    channel), W/sr (pi times it is the power). Emitters are sampled by luminance and a channel is
+    at most 1 / 0.0722 of it, so a direct light carries at most 14 times that and a particle path
+    starts with at most 14 pi times it; a diffuse bounce never raises a path's weight and a glossy
+    one at most doubles it: the 1e10 left below MAX_INTENSITY is that headroom
 """
 
 SLOT_BITS = 20
@@ -24,3 +34,7 @@ MAX_PIXELS = 1 << 25
 MAX_EXPOSURE = 1000.0
 MAX_PASSES = 4096
 MAX_CONTINUATION_RAYS = 64
+MAX_TEXELS = 1 << 26
+MAX_SCENE_TEXELS = 1 << 27
+MAX_RADIANCE = MAX_COORD
+MAX_EMITTED_POWER = 1e90

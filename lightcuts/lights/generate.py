@@ -49,11 +49,13 @@ def lights_from_config(cfg, scene, caster=None, envmap: EnvironmentMap | None = 
     ``count_direct``, ``count_indirect``, ``count_sun``, ``count_environment`` (0 when absent) plus
     ``indirect_paths`` (the particle paths that normalise the VPLs).
 
-    LightcutsError: an indirect count > 0, or a direct count the config sets, in a scene without
-    emitters (the default direct count then makes no lights), a zero sun direction, an unreadable
-    environment map, or no lights at all.
+    LightcutsError: emission the scene may not have (:meth:`Scene.check_emission`), an indirect
+    count > 0, or a direct count the config sets, in a scene without emitters (the default direct
+    count then makes no lights), a zero sun direction, an unreadable environment map, or no
+    lights at all.
     """
     lc = cfg.lights
+    scene.check_emission(f"scene {scene.name!r}")  # NaN would count as no emission below
     have_emitters = len(scene.emitters) > 0 and float((scene.emission.max(axis=1) * scene.face_areas).max()) > 0
     n_direct = lc.direct.count
     if not have_emitters and "count" not in lc.direct.model_fields_set:

@@ -23,6 +23,7 @@ from lightcuts.scene.emitters import emitter_scene
 from lightcuts.scene.loaders import concatenate_scenes, load_mesh
 from lightcuts.scene.registry import make_scene, resolve_scene
 from lightcuts.scene.scene import Camera, Scene
+from lightcuts.scene.textures import TexelBudget
 
 DEFAULT_FOV = 40.0  # degrees, vertical
 DEFAULT_RESOLUTION = (512, 512)
@@ -86,15 +87,19 @@ def scene_from_config(cfg: RunConfig, scene_type: Resolved | None = None) -> Sce
     Triangle order: the scene type's first, then each of ``cfg.scene.meshes`` in order (a type with
     the ``exhibits`` trait, the gallery, takes them: its room, then the meshes on their plinths),
     then the area lights of ``cfg.scene.emitters`` (lightcuts.scene.emitters). Mesh paths are
-    resolved with ``cfg.resolve``; errors name ``scene.meshes.<i>`` / ``scene.emitters.<i>``.
+    resolved with ``cfg.resolve``; errors name ``scene.meshes.<i>`` / ``scene.emitters.<i>``. The
+    meshes' textures share one texel budget (lightcuts.limits.MAX_SCENE_TEXELS); the emission of
+    each part, then of the whole scene, is checked against the light limits
+    (:meth:`Scene.check_emission`).
     """
     sc = cfg.scene
     scene_type = resolve_scene(sc) if scene_type is None else scene_type
     if sc.materials and scene_type is None:
         raise LightcutsError(f"scene.materials.{next(iter(sc.materials))}: overrides built-in surfaces, "
                              "but neither scene.builtin nor scene.procedural is set")
-    meshes = [load_mesh(cfg.resolve(m.file), m.scale, m.rotate, m.translate, m.material, key=f"scene.meshes.{i}")
-              for i, m in enumerate(sc.meshes)]
+    budget = TexelBudget()
+    meshes = [load_mesh(cfg.resolve(m.file), m.scale, m.rotate, m.translate, m.material, key=f"scene.meshes.{i}",
+                        budget=budget) for i, m in enumerate(sc.meshes)]
     parts = []
     if scene_type is not None:
         if scene_type.trait("exhibits"):
@@ -102,11 +107,13 @@ def scene_from_config(cfg: RunConfig, scene_type: Resolved | None = None) -> Sce
         else:
             exhibits, offsets = [], []
         parts.append(make_scene(scene_type, sc.materials, exhibits, offsets, name=cfg.name))
+        parts[0].check_emission("scene.materials" if sc.materials else f"scene: the {scene_type.name} scene")
     parts += meshes
     parts += [emitter_scene(e, key=f"scene.emitters.{i}") for i, e in enumerate(sc.emitters)]
     if not parts:
         raise LightcutsError("scene: needs builtin, procedural, meshes or emitters")
     base_camera = parts[0].camera if scene_type is not None else None
     scene = concatenate_scenes(parts, name=cfg.name)
+    scene.check_emission("scene: all its parts together")
     scene.camera = _apply_camera_config(cfg.camera, base_camera, scene.bounds)
     return scene

@@ -57,5 +57,7 @@ def emitter_scene(entry, key: str = "scene.emitters.0") -> Scene:
     faces = (tris[None, :, :] + len(shape) * np.arange(len(centres))[:, None, None]).reshape(-1, 3)
     if not np.all(np.isfinite(vertices)):
         raise LightcutsError(f"{key}: its vertices are not finite")
-    return Scene(vertices, faces, albedo=entry.albedo, specular=0.0, exponent=0.0, emission=entry.radiance,
-                 name=key)
+    scene = Scene(vertices, faces, albedo=entry.albedo, specular=0.0, exponent=0.0, emission=entry.radiance,
+                  name=key)
+    scene.check_emission(key)
+    return scene

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import io
 import math
-import os
 import warnings
 from pathlib import Path
 from typing import Mapping, Sequence
@@ -22,9 +21,11 @@ from pydantic import ValidationError
 
 from lightcuts.config.schema import Material
 from lightcuts.errors import LightcutsError
-from lightcuts.scene.materials import FileMaterial, MtlResolver, file_material
+from lightcuts.scene.files import regular_file
+from lightcuts.scene.gltf import GltfFile
+from lightcuts.scene.materials import FileMaterial, MtlResolver, obj_material
 from lightcuts.scene.scene import Camera, Scene
-from lightcuts.scene.textures import TextureSet, face_texture_means
+from lightcuts.scene.textures import TexelBudget, TextureSet, check_uv, face_texture_means
 
 SUPPORTED = (".obj", ".ply", ".gltf", ".glb")
 
@@ -96,7 +97,7 @@ def _obj_text(path: Path) -> str:
 
 def load_mesh(path, scale: float | Sequence[float] = 1.0, rotate: Sequence[float] = (0.0, 0.0, 0.0),
               translate: Sequence[float] = (0.0, 0.0, 0.0), material: Material | Mapping | None = None,
-              key: str = "scene.meshes.0") -> Scene:
+              key: str = "scene.meshes.0", budget: TexelBudget | None = None) -> Scene:
     """Read a triangle mesh file (OBJ with MTL, PLY, glTF/GLB) into a Scene.
 
     Parameters
@@ -113,6 +114,9 @@ def load_mesh(path, scale: float | Sequence[float] = 1.0, rotate: Sequence[float
         Replaces the file's materials on every triangle.
     key : str
         The config key named in error messages.
+    budget : TexelBudget, optional
+        The texels the scene's textures may still take (lightcuts.limits.MAX_SCENE_TEXELS); shared
+        by the meshes of one scene.
 
     Returns
     -------
@@ -123,8 +127,10 @@ def load_mesh(path, scale: float | Sequence[float] = 1.0, rotate: Sequence[float
     ------
     LightcutsError
         One line ``<key>: <path>: <problem>`` for a missing or unreadable file, an unsupported
-        extension, no triangles, or non-finite vertices. Degenerate (zero-area) triangles are
-        dropped with a warning naming the file and the count.
+        extension, a malformed file or material (glTF: lightcuts.scene.gltf), a texture missing,
+        unreadable or beyond the texel limits, no triangles, non-finite vertices or texture
+        coordinates, or emission beyond the limits (:meth:`Scene.check_emission`). Degenerate
+        (zero-area) triangles are dropped with a warning naming the file and the count.
     """
     path = Path(path)
     where = f"{key}: {path}"
@@ -132,10 +138,7 @@ def load_mesh(path, scale: float | Sequence[float] = 1.0, rotate: Sequence[float
     if ext not in SUPPORTED:
         raise LightcutsError(f"{where}: unsupported mesh format {path.suffix or '(no extension)'!r}; "
                              f"supported: {', '.join(SUPPORTED)}")
-    if not path.is_file():
-        raise LightcutsError(f"{where}: no such file")
-    if not os.access(path, os.R_OK):
-        raise LightcutsError(f"{where}: cannot read file (permission denied)")
+    regular_file(path, where)
     scale_v = _vector(scale, "scale", key, allow_scalar=True)
     if np.any(scale_v == 0):
         raise LightcutsError(f"{key}.scale: must be non-zero on every axis, got {scale!r}")
@@ -145,23 +148,27 @@ def load_mesh(path, scale: float | Sequence[float] = 1.0, rotate: Sequence[float
 
     import trimesh
 
+    budget = TexelBudget() if budget is None else budget
     mtl = MtlResolver(path, where) if ext == ".obj" and override is None else None
-    options = {}
-    if ext == ".obj":
-        options = {"resolver": mtl} if mtl is not None else {"skip_materials": True}
+    gltf = GltfFile(path, where, budget, materials=override is None) if ext in (".gltf", ".glb") else None
     try:
         if ext == ".obj":
+            options = {"resolver": mtl} if mtl is not None else {"skip_materials": True}
             loaded = trimesh.load(io.BytesIO(_obj_text(path).encode("utf-8")), file_type="obj", force="scene",
                                   process=False, **options)
+        elif gltf is not None:
+            loaded = trimesh.load(io.BytesIO(gltf.glb), file_type="glb", force="scene", process=False)
         else:
-            loaded = trimesh.load(str(path), force="scene", process=False, **options)
-    except Exception as exc:  # trimesh raises many types on malformed files
-        raise LightcutsError(f"{where}: cannot read mesh ({type(exc).__name__}: {exc})".splitlines()[0]) from None
+            loaded = trimesh.load(str(path), force="scene", process=False)
+    except Exception as exc:  # trimesh raises many types on malformed OBJ and PLY files
+        reason = str(exc).strip().splitlines()
+        raise LightcutsError(f"{where}: cannot read mesh: trimesh's {ext[1:].upper()} reader failed "
+                             f"({type(exc).__name__}{': ' + reason[0] if reason else ''})") from None
     if mtl is not None:
         if mtl.error is not None:
             raise mtl.error
         for missing in mtl.missing:
-            warnings.warn(f"{where}: material library {missing} not found; its materials get the default",
+            warnings.warn(f"{where}: material library {missing}; its materials get the default",
                           stacklevel=2)
 
     parts = []  # (vertices, faces, FileMaterial, corner uv (F, 3, 2) or None) per geometry instance
@@ -182,16 +189,22 @@ def load_mesh(path, scale: float | Sequence[float] = 1.0, rotate: Sequence[float
         v = v @ m[:3, :3].T + m[:3, 3]
         if np.linalg.det(m[:3, :3]) < 0:
             f = f[:, ::-1]
-        mat = (FileMaterial(override.albedo, override.specular, override.exponent, override.emission)
-               if override is not None else
-               file_material(geom, mtl.materials if mtl is not None else None, where, images))
+        if override is not None:
+            mat = FileMaterial(override.albedo, override.specular, override.exponent, override.emission)
+        elif gltf is not None:
+            mat = gltf.material_of(geom)
+        else:
+            mat = obj_material(geom, mtl.materials if mtl is not None else None, where, images, budget)
         uv = None
         if mat.texture is not None or mat.emissive is not None:
             vuv = getattr(geom.visual, "uv", None)
-            if vuv is None or len(vuv) != len(v) or not np.all(np.isfinite(vuv)):
-                raise LightcutsError(f"{where}: a textured material ({mat.texture_name or 'emissive texture'}) "
-                                     f"on triangles without texture coordinates")
-            uv = np.asarray(vuv, np.float64)[f] * mat.uv_scale + mat.uv_offset
+            textured = f"{where}: a textured material ({mat.texture_name or 'emissive texture'})"
+            if vuv is None or len(vuv) != len(v):
+                raise LightcutsError(f"{textured} on triangles without texture coordinates")
+            check_uv(np.asarray(vuv, np.float64)[f], textured)
+            with np.errstate(over="ignore", invalid="ignore"):
+                uv = np.asarray(vuv, np.float64)[f] * mat.uv_scale + mat.uv_offset
+            check_uv(uv, f"{textured}, its coordinates moved and scaled by map_Kd -o and -s")
             if mat.emissive is not None:
                 one = TextureSet.of([mat.emissive], ["emissive"])
                 emission = mat.emission * face_texture_means(one, np.zeros(len(f), np.int32), uv)
@@ -251,8 +264,13 @@ def load_mesh(path, scale: float | Sequence[float] = 1.0, rotate: Sequence[float
         exponent, emission = exponent[keep], emission[keep]
         face_tex, face_uv = face_tex[keep], face_uv[keep]
 
-    return Scene(vertices, faces, albedo, specular, exponent, emission, camera=None, name=path.stem,
-                 uv=face_uv, texture=face_tex, textures=textures)
+    textured = face_tex >= 0
+    if textured.any():
+        check_uv(face_uv[textured], where, vertices, faces[textured])
+    scene = Scene(vertices, faces, albedo, specular, exponent, emission, camera=None, name=path.stem,
+                  uv=face_uv, texture=face_tex, textures=textures)
+    scene.check_emission(where)
+    return scene
 
 
 def concatenate_scenes(scenes: Sequence[Scene], camera: Camera | None = None, name: str | None = None) -> Scene:

@@ -10,12 +10,13 @@
   ``MtlResolver``). A material without ``Kd`` gets the default albedo. A missing material library
   is a warning (its materials get the default), a malformed entry or a missing texture an error.
 - glTF/GLB, per primitive, the metallic-roughness model mapped onto Lambert + Phong (:func:`pbr_to_phong`):
-  ``baseColorFactor`` (trimesh stores it as 8-bit RGBA, so it is exact to 1/255) and
-  ``baseColorTexture`` -> the diffuse albedo and its texture, ``metallicFactor`` and
-  ``roughnessFactor`` -> the specular reflectance and exponent, ``emissiveFactor`` times
-  ``emissiveTexture`` (averaged over each triangle: emitters have one radiance per triangle) ->
-  emission. ``TEXCOORD_0`` only; ``metallicRoughnessTexture``, normal and occlusion maps and
-  extensions are not read.
+  ``baseColorFactor`` and ``baseColorTexture`` -> the diffuse albedo and its texture,
+  ``metallicFactor`` and ``roughnessFactor`` -> the specular reflectance and exponent,
+  ``emissiveFactor`` times ``KHR_materials_emissive_strength`` times ``emissiveTexture`` (averaged
+  over each triangle: emitters have one radiance per triangle) -> emission. Read and checked by
+  lightcuts.scene.gltf (factors in the specification's ranges, textures and images present and
+  decodable); ``TEXCOORD_0`` only; ``metallicRoughnessTexture``, normal and occlusion maps and
+  other extensions are not read.
 - Any geometry without a material: diffuse, albedo ``DEFAULT_ALBEDO`` (0.5 grey).
 """
 
@@ -27,7 +28,9 @@ from typing import NamedTuple
 import numpy as np
 
 from lightcuts.errors import LightcutsError
-from lightcuts.scene.textures import image_to_linear, read_image
+from lightcuts.limits import MAX_RADIANCE
+from lightcuts.scene.files import regular_file
+from lightcuts.scene.textures import TexelBudget, read_image
 
 DEFAULT_ALBEDO = 0.5
 #: glTF's reflectance of a dielectric at normal incidence (the metallic-roughness model's 0.04).
@@ -81,6 +84,8 @@ def parse_mtl(text: str, where: str) -> dict[str, dict]:
             if args and args[0].lower() in ("spectral", "xyz"):
                 raise LightcutsError(f"{here}: {tokens[0]} {args[0]} is not supported; give r g b")
             current[key] = np.broadcast_to(_numbers(args, (1, 3), tokens[0], here), 3).copy()
+            if key == "ke" and current[key].max() > MAX_RADIANCE:
+                raise LightcutsError(f"{here}: {tokens[0]} {' '.join(args)}: emitted radiance above {MAX_RADIANCE:g}")
         elif key == "ns":
             current[key] = float(_numbers(args, (1,), tokens[0], here)[0])
         else:
@@ -133,7 +138,7 @@ class MtlResolver:
         self.where = where
         self.materials: dict[str, dict] = {}
         self.error: LightcutsError | None = None
-        self.missing: list[str] = []
+        self.missing: list[str] = []  # "<library>: <problem>" of each library not read
 
     def __getitem__(self, name: str) -> bytes:
         return self.get(name)
@@ -144,10 +149,10 @@ class MtlResolver:
         names = [name] if (self.parent / name).is_file() else name.split()
         for n in names:
             path = self.parent / n
-            try:
-                text = path.read_text(errors="replace")
-            except OSError:
-                self.missing.append(str(path))
+            try:  # a regular file: a pipe would block the read
+                text = regular_file(path, str(path)).read_text(errors="replace")
+            except (LightcutsError, OSError) as exc:
+                self.missing.append(str(exc) if isinstance(exc, LightcutsError) else f"{path}: {exc.strerror}")
                 continue
             try:
                 mats = parse_mtl(text, f"{self.where}: {path}")
@@ -193,50 +198,31 @@ class FileMaterial(NamedTuple):
     emissive: np.ndarray | None = None
 
 
-def _pil_linear(image) -> np.ndarray:
-    """A texture trimesh hands over (PIL image or array) -> (H, W, 3) float32 linear RGB."""
-    a = np.asarray(image.convert("RGB") if hasattr(image, "convert") else image)
-    if a.ndim == 2:
-        a = np.repeat(a[:, :, None], 3, axis=2)
-    if a.dtype != np.uint8:
-        a = np.clip(np.round(np.asarray(a, np.float64) * (255.0 if a.max() <= 1.0 else 1.0)), 0, 255)
-    return image_to_linear(a[:, :, :3].astype(np.uint8))
+def default_material() -> FileMaterial:
+    """Diffuse grey, for geometry without a material."""
+    return FileMaterial(np.full(3, DEFAULT_ALBEDO), np.zeros(3), 0.0, np.zeros(3))
 
 
-def file_material(geometry, obj_materials: dict | None, where: str, images: dict) -> FileMaterial:
-    """The material of one trimesh geometry (module docstring). ``obj_materials``: for OBJ files,
-    the ``parse_mtl`` values by material name; None otherwise. ``images``: texture file -> linear
-    image, read once per file."""
-    from trimesh.visual.material import PBRMaterial, SimpleMaterial
+def obj_material(geometry, obj_materials: dict | None, where: str, images: dict,
+                 budget: TexelBudget | None = None) -> FileMaterial:
+    """The material of one trimesh geometry of an OBJ file (module docstring): the ``parse_mtl``
+    values of its ``usemtl`` name in ``obj_materials`` (None: no library read). ``images``:
+    texture file -> linear image, read once per file, its texels taken from ``budget``."""
+    from trimesh.visual.material import SimpleMaterial
 
     mat = getattr(geometry.visual, "material", None)
-    out = FileMaterial(np.full(3, DEFAULT_ALBEDO), np.zeros(3), 0.0, np.zeros(3))
-    if obj_materials is not None:
-        values = obj_materials.get(mat.name) if isinstance(mat, SimpleMaterial) else None
-        if values is not None:
-            out = out._replace(albedo=values.get("kd", out.albedo), specular=values.get("ks", out.specular),
-                               exponent=values.get("ns", out.exponent), emission=values.get("ke", out.emission))
-            if values.get("illum") in (0, 1):  # no highlights, by the MTL spec
-                out = out._replace(specular=np.zeros(3))
-            if "map_kd" in values:
-                m = values["map_kd"]
-                if m["file"] not in images:
-                    images[m["file"]] = read_image(m["file"], f"{where}: material {mat.name!r}")
-                out = out._replace(texture=images[m["file"]], texture_name=m["file"], uv_offset=m["offset"],
-                                   uv_scale=m["scale"])
-    elif isinstance(mat, PBRMaterial):
-        # glTF defaults: base colour 1, metallic 1, roughness 1, emissive 0
-        base = np.ones(3) if mat.baseColorFactor is None else np.asarray(mat.baseColorFactor[:3], np.float64) / 255.0
-        metallic = 1.0 if mat.metallicFactor is None else float(mat.metallicFactor)
-        roughness = 1.0 if mat.roughnessFactor is None else float(mat.roughnessFactor)
-        rd, rs, n = pbr_to_phong(base, metallic, roughness)
-        emission = np.zeros(3) if mat.emissiveFactor is None else np.asarray(mat.emissiveFactor, np.float64)
-        out = out._replace(albedo=rd, specular=rs, exponent=n, emission=emission.reshape(3))
-        for attr, slot in (("baseColorTexture", "texture"), ("emissiveTexture", "emissive")):
-            image = getattr(mat, attr)
-            if image is not None:
-                key = f"glTF {mat.name or 'material'} {attr} {id(image)}"
-                if key not in images:
-                    images[key] = _pil_linear(image)
-                out = out._replace(**{slot: images[key]}, **({"texture_name": key} if slot == "texture" else {}))
+    out = default_material()
+    values = obj_materials.get(mat.name) if obj_materials is not None and isinstance(mat, SimpleMaterial) else None
+    if values is None:
+        return out
+    out = out._replace(albedo=values.get("kd", out.albedo), specular=values.get("ks", out.specular),
+                       exponent=values.get("ns", out.exponent), emission=values.get("ke", out.emission))
+    if values.get("illum") in (0, 1):  # no highlights, by the MTL spec
+        out = out._replace(specular=np.zeros(3))
+    if "map_kd" in values:
+        m = values["map_kd"]
+        if m["file"] not in images:
+            images[m["file"]] = read_image(m["file"], f"{where}: material {mat.name!r}: texture {m['file']}", budget)
+        out = out._replace(texture=images[m["file"]], texture_name=m["file"], uv_offset=m["offset"],
+                           uv_scale=m["scale"])
     return out

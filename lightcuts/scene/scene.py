@@ -14,6 +14,7 @@ import numpy as np
 
 from lightcuts.errors import LightcutsError
 from lightcuts.io import save_npz
+from lightcuts.limits import MAX_EMITTED_POWER, MAX_RADIANCE
 from lightcuts.scene.textures import TextureSet, empty_kernel_data, uv_maps
 
 
@@ -176,6 +177,30 @@ class Scene:
     def emitters(self) -> np.ndarray:
         """(E,) int64 ids of triangles with non-zero emission."""
         return np.flatnonzero(self.emission.max(axis=1) > 0)
+
+    def check_emission(self, where: str) -> None:
+        """LightcutsError ``<where>: ...`` unless every triangle's emitted radiance is finite, >= 0
+        and at most ``MAX_RADIANCE``, and the emitted power (area x largest channel, summed over
+        the emitters) at most ``MAX_EMITTED_POWER`` (lightcuts.limits): what every light made
+        from the scene needs to stay within the light limits. ``where`` names the source."""
+        e = self.emission
+        top = np.maximum(np.maximum(e[:, 0], e[:, 1]), e[:, 2])  # NaN propagates; faster than max(axis=1)
+        if not (np.isfinite(top).all() and e.min(initial=0.0) >= 0 and top.max(initial=0.0) <= MAX_RADIANCE):
+            for bad, problem in ((~np.all(np.isfinite(e), axis=1), "NaN or infinite radiance"),
+                                 (np.any(e < 0, axis=1), "negative radiance"),
+                                 (np.any(e > MAX_RADIANCE, axis=1), f"radiance above {MAX_RADIANCE:g}")):
+                if bad.any():
+                    i = int(np.flatnonzero(bad)[0])
+                    raise LightcutsError(f"{where}: {int(bad.sum())} triangles emit {problem} "
+                                         f"(triangle {i}: {e[i].tolist()})")
+        lit = np.flatnonzero(top > 0)
+        t = self.vertices[self.faces[lit]]  # the emitters only: most triangles of a large scene are not
+        with np.errstate(over="ignore", invalid="ignore"):
+            area = 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)
+            power = float(np.sum(e[lit].max(axis=1) * area))
+        if not power <= MAX_EMITTED_POWER * (1 + 1e-12):  # the sum's rounding: 1e30 x 1e30 at 1e30 is in
+            raise LightcutsError(f"{where}: emitted power {power:.3g} W/sr (area x radiance, summed over "
+                                 f"{len(lit)} emitting triangles) is above {MAX_EMITTED_POWER:g}")
 
     def save(self, path) -> Path:
         """Write the scene as .npz (keys = the field names; ``camera`` as 12 floats)."""

@@ -12,26 +12,33 @@ hit's albedo. Without textures every array in it is empty and :func:`albedo_at` 
 texture coordinates of a point come from a per-triangle affine map (:func:`uv_maps`): the point's
 barycentric coordinates are two dot products with the triangle's dual edge vectors, so a kernel
 needs only the hit point, not the caster's barycentrics.
+
+Any finite texture coordinate gives its texel: coordinates are reduced to [0, 1) in float64 (``u -
+floor(u)``, exact) before any conversion to an integer, per triangle when the uv maps are made and
+again in the lookup, so ``u = 3e18`` reads the texel ``u = 0`` does. Images are checked from their
+header before they are decoded: at most ``MAX_TEXELS`` texels each and ``MAX_SCENE_TEXELS`` in all
+(lightcuts.limits, :class:`TexelBudget`).
 """
 
 from __future__ import annotations
 
+import io
 import math
+import warnings
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 from numba import njit
 
 from lightcuts.errors import LightcutsError
+from lightcuts.limits import MAX_SCENE_TEXELS, MAX_TEXELS
+from lightcuts.scene.files import regular_file
 
-#: Columns of a triangle's uv map (:func:`uv_maps`): corner 0, d(u)/dx, d(v)/dx, (u, v) at corner 0.
+#: Columns of a triangle's uv map (:func:`uv_maps`): corner 0, d(u)/dx, d(v)/dx, (u, v) at corner 0 in [0, 1).
 UV_P0, UV_GU, UV_GV, UV_0 = 0, 3, 6, 9
 UV_COLUMNS = 11
 #: Columns of the texture table: first texel row, width, height.
 TEX_OFFSET, TEX_WIDTH, TEX_HEIGHT = 0, 1, 2
-#: Largest texture side read, pixels (a 16K x 16K RGB image is 3 GiB of float32).
-MAX_TEXTURE_SIDE = 16384
 
 
 def srgb_to_linear(c: np.ndarray) -> np.ndarray:
@@ -40,24 +47,62 @@ def srgb_to_linear(c: np.ndarray) -> np.ndarray:
     return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
 
 
-def read_image(path, where: str) -> np.ndarray:
-    """(H, W, 3) float32 linear RGB of an 8-bit image file (PNG, JPEG, ...: what Pillow reads),
-    sRGB-decoded; greyscale is grey, alpha is dropped. LightcutsError naming ``where`` and the file
-    when it is missing or unreadable."""
-    from PIL import Image, UnidentifiedImageError
+class TexelBudget:
+    """The texels one scene has read so far, against ``MAX_SCENE_TEXELS``: every image read for a
+    scene takes its share before it is decoded (an image two meshes use is stored twice, so counts
+    twice)."""
 
-    path = Path(path)
-    if not path.is_file():
-        raise LightcutsError(f"{where}: texture {path}: no such file")
+    def __init__(self):
+        self.used = 0
+
+    def take(self, n: int, where: str) -> None:
+        if self.used + n > MAX_SCENE_TEXELS:
+            raise LightcutsError(f"{where}: its {n:,} texels bring the scene's textures to {self.used + n:,}, "
+                                 f"more than the {MAX_SCENE_TEXELS:,} a scene may have")
+        self.used += n
+
+
+def read_image(source, where: str, budget: TexelBudget | None = None) -> np.ndarray:
+    """(H, W, 3) float32 linear RGB of an 8-bit image (PNG, JPEG, ...: what Pillow reads), from a file
+    path or the bytes of one, sRGB-decoded; greyscale is grey, alpha is dropped.
+
+    The size comes from the header and is checked (``MAX_TEXELS``, then ``budget``) before the
+    pixels are decoded. Every problem is one LightcutsError ``<where>: <problem>``: ``where``
+    names the image (the file, or the glTF image and its file).
+    """
+    from PIL import Image
+
+    stream = io.BytesIO(source) if isinstance(source, (bytes, bytearray)) else regular_file(source, where)
     try:
-        with Image.open(path) as im:
-            if max(im.size) > MAX_TEXTURE_SIDE:
-                raise LightcutsError(f"{where}: texture {path}: {im.size[0]} x {im.size[1]} pixels, more than "
-                                     f"{MAX_TEXTURE_SIDE} on a side")
+        with warnings.catch_warnings():  # Pillow warns from 89 million pixels on: below, the limit says more
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            im = Image.open(stream)
+    except Image.DecompressionBombError:
+        raise LightcutsError(f"{where}: its header claims more than {2 * Image.MAX_IMAGE_PIXELS:,} texels, more than "
+                             f"the {MAX_TEXELS:,} a texture may have") from None
+    except Image.UnidentifiedImageError:
+        raise LightcutsError(f"{where}: cannot read image (not a format Pillow knows, or a broken header)") from None
+    except Exception as exc:  # Pillow raises many types on malformed headers
+        raise LightcutsError(f"{where}: cannot read image ({_reason(exc)})") from None
+    with im:
+        w, h = im.size
+        if w * h > MAX_TEXELS:
+            raise LightcutsError(f"{where}: {w} x {h} texels, more than the {MAX_TEXELS:,} a texture may have")
+        if w * h == 0:
+            raise LightcutsError(f"{where}: an empty image ({w} x {h} texels)")
+        if budget is not None:
+            budget.take(w * h, where)
+        try:
             rgb = np.asarray(im.convert("RGB"), np.uint8)
-    except (OSError, UnidentifiedImageError, ValueError) as exc:
-        raise LightcutsError(f"{where}: texture {path}: cannot read image ({exc})".splitlines()[0]) from None
+        except Exception as exc:  # truncated or corrupt data: OSError, ValueError, EOFError, zlib.error, ...
+            raise LightcutsError(f"{where}: cannot read image: its data does not decode ({_reason(exc)})") from None
     return image_to_linear(rgb)
+
+
+def _reason(exc: BaseException) -> str:
+    """A decoder's exception as the first line of its message (its type when it has none)."""
+    text = str(exc).strip().splitlines()
+    return text[0] if text else type(exc).__name__
 
 
 def image_to_linear(rgb8: np.ndarray) -> np.ndarray:
@@ -126,7 +171,8 @@ class TextureSet:
 
 def uv_maps(vertices: np.ndarray, faces: np.ndarray, uv: np.ndarray) -> np.ndarray:
     """(F, UV_COLUMNS) float64: per triangle, corner p0 and the gradients of u and v in world space,
-    so that ``u(x) = u0 + (x - p0) . grad u`` on the triangle (and likewise v).
+    so that ``u(x) = u0 + (x - p0) . grad u`` on the triangle (and likewise v), u0 the corner's u
+    less its floor (whole periods of the repeat: the same texels, and small values for the kernel).
 
     vertices (V, 3), faces (F, 3), uv (F, 3, 2) the corners' texture coordinates. With e1, e2 the
     edges from p0, a point's barycentrics are (x - p0) . c1 and (x - p0) . c2 for the dual vectors
@@ -145,8 +191,30 @@ def uv_maps(vertices: np.ndarray, faces: np.ndarray, uv: np.ndarray) -> np.ndarr
     out[:, UV_P0:UV_P0 + 3] = t[:, 0]
     out[:, UV_GU:UV_GU + 3] = du1[:, 0:1] * c1 + du2[:, 0:1] * c2
     out[:, UV_GV:UV_GV + 3] = du1[:, 1:2] * c1 + du2[:, 1:2] * c2
-    out[:, UV_0:UV_0 + 2] = uv[:, 0]
+    out[:, UV_0:UV_0 + 2] = uv[:, 0] - np.floor(uv[:, 0])  # a whole number of periods off: the same texels
     return out
+
+
+def check_uv(uv: np.ndarray, where: str, vertices: np.ndarray | None = None, faces: np.ndarray | None = None) -> None:
+    """LightcutsError ``<where>: ...`` unless every triangle's texture coordinates (F, 3, 2) and
+    their differences between corners are finite, and (given the ``vertices`` and ``faces`` as
+    rendered) so is its uv map (:func:`uv_maps`). Coordinates whose differences overflow float64
+    (1e308 and -1e308 on one triangle) or change faster than it holds across a triangle have no
+    texel to give between the corners."""
+    uv = np.asarray(uv, np.float64).reshape(-1, 3, 2)
+    bad = ~np.all(np.isfinite(uv), axis=(1, 2))
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise LightcutsError(f"{where}: {int(bad.sum())} triangles have NaN or infinite texture coordinates "
+                             f"(triangle {i}: {uv[i].tolist()})")
+    with np.errstate(over="ignore", invalid="ignore"):
+        bad = ~np.all(np.isfinite(uv[:, 1:] - uv[:, :1]), axis=(1, 2))
+        if vertices is not None:
+            bad |= ~np.all(np.isfinite(uv_maps(vertices, faces, uv)), axis=1)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise LightcutsError(f"{where}: the texture coordinates of {int(bad.sum())} triangles change faster "
+                             f"across them than float64 holds (triangle {i}: {uv[i].tolist()})")
 
 
 def empty_kernel_data():
@@ -169,6 +237,7 @@ def face_texture_means(textures: TextureSet, face_texture: np.ndarray, uv: np.nd
     if len(has) == 0:
         return out
     uvh = np.asarray(uv, np.float64)[has]
+    uvh = uvh - np.floor(uvh[:, :1])  # whole periods off: small values, whose steps keep their precision
     pts = uvh[:, None, 0] + bary[None, :, 0:1] * (uvh[:, None, 1] - uvh[:, None, 0]) \
         + bary[None, :, 1:2] * (uvh[:, None, 2] - uvh[:, None, 0])
     vals = _lookup_many(textures.texels, textures.table, np.repeat(face_texture[has], len(bary)).astype(np.int64),
@@ -197,14 +266,14 @@ def texture_lookup(texels, table, k, u, v):
     o = table[k, TEX_OFFSET]
     w = table[k, TEX_WIDTH]
     h = table[k, TEX_HEIGHT]
-    fx = u * w - 0.5
+    if not (math.isfinite(u) and math.isfinite(v)):
+        u, v = 0.0, 0.0
+    u -= np.floor(u)  # into [0, 1], in float64: exact, and no integer conversion of a huge value
+    v -= np.floor(v)
+    fx = u * w - 0.5  # in [-0.5, w - 0.5]
     fy = (1.0 - v) * h - 0.5
-    if not (math.isfinite(fx) and math.isfinite(fy)):
-        fx, fy = 0.0, 0.0
-    fx -= math.floor(fx / w) * w  # into [0, w): exact repeat, no int overflow for huge u
-    fy -= math.floor(fy / h) * h
-    x0 = np.int64(math.floor(fx))
-    y0 = np.int64(math.floor(fy))
+    x0 = np.int64(np.floor(fx))  # in [-1, w - 1]
+    y0 = np.int64(np.floor(fy))
     tx = fx - x0
     ty = fy - y0
     x0 = _wrap(x0, w)

@@ -21,6 +21,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from lightcuts.errors import LightcutsError
+from scene_files import (broken_png, checkerboard, png_bytes, png_claiming, quad_gltf, quad_obj, textured_material,
+                         write_gltf)
 
 ROOT = Path(__file__).parents[2]
 BASE = {"name": "old", "scene": {"builtin": "cornell"}, "camera": {"resolution": [16, 16]},
@@ -80,6 +82,34 @@ def _setup_files(folder: Path) -> None:
     _write(folder / "mine", "notes.txt", "the user's own file")
     _write(folder, "nan.obj", "v 0 0 nan\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
     _write(folder, "garbage.exr", b"not an exr")
+    _setup_scene_files(folder)
+
+
+def _setup_scene_files(folder: Path) -> None:
+    """Meshes whose materials, textures or texture coordinates are bad (the ``scene-*`` cases)."""
+    _write(folder, "tex.png", png_bytes(checkerboard()))
+    _write(folder, "bomb.png", png_claiming(16000, 16000))
+    _write(folder, "broken.png", broken_png())
+    for name, mtl in (("bomb", "map_Kd bomb.png"), ("folder_tex", "map_Kd mine"), ("null_tex", "map_Kd /dev/null"),
+                      ("ke_huge", "Ke 1e300 1 1"), ("plain", "Kd 1 1 1")):
+        quad_obj(folder, f"newmtl m\n{mtl}\n", name=name)
+    quad_obj(folder, "newmtl m\nmap_Kd tex.png\n", name="uv_overflow", uv=["1e308 0", "-1e308 0", "0 1", "0 1"])
+    for name, images, textures, material in (
+            ("missing_image", [{"uri": "nowhere.png"}], [{"source": 0}], textured_material()),
+            ("broken_image", [{"uri": "broken.png"}], [{"source": 0}], textured_material()),
+            ("bomb_image", [{"uri": "bomb.png"}], [{"source": 0}], textured_material()),
+            ("source_out_of_range", [{"uri": "tex.png"}], [{"source": 1}], textured_material()),
+            ("base_nan", [], [], {"pbrMetallicRoughness": {"baseColorFactor": [float("nan"), 1, 1, 1]}}),
+            ("metallic_nan", [], [], {"pbrMetallicRoughness": {"metallicFactor": float("nan")}}),
+            ("emissive_1e300", [], [], {"emissiveFactor": [1e300, 1, 1]}),
+            ("emissive_nan", [], [], {"emissiveFactor": [float("nan"), 1, 1]})):
+        doc, blob = quad_gltf(material)
+        doc["images"], doc["textures"] = images, textures
+        write_gltf(folder / f"{name}.glb", doc, blob)
+    doc, blob = quad_gltf()
+    write_gltf(folder / "short_buffer.gltf", doc, blob[:50])
+    raw = (folder / "base_nan.glb").read_bytes()
+    _write(folder, "not_utf8.glb", raw[:30] + b"\xff" * 8 + raw[38:])
 
 
 # (id, argv after the command's config, config changes or raw config bytes/text, light-file maker)
@@ -186,6 +216,17 @@ CASES = [
     ("lights-indirect-float", None, None, dict(indirect=np.ones(3))),
     # a mesh the README promises to refuse
     ("mesh-nan-vertices", ["render", "bad.yaml"], _config(scene={"meshes": [{"file": "nan.obj"}]}), None),
+    # textures, texture coordinates, glTF files and materials, emission (files of _setup_scene_files)
+    *[(f"scene-{name.replace('_', '-')}", ["render", "bad.yaml"], _config(scene={"meshes": [{"file": name}]}), None)
+      for name in ("bomb.obj", "folder_tex.obj", "null_tex.obj", "ke_huge.obj", "uv_overflow.obj", "missing_image.glb",
+                   "broken_image.glb", "bomb_image.glb", "source_out_of_range.glb", "base_nan.glb", "metallic_nan.glb",
+                   "emissive_1e300.glb", "emissive_nan.glb", "short_buffer.gltf", "not_utf8.glb")],
+    ("scene-mesh-emission-power", ["render", "bad.yaml"], _config(scene={"meshes": [
+        {"file": "plain.obj", "scale": 1e30, "material": {"emission": [1e30, 1e30, 1e30]}}]}),
+     None),
+    ("scene-emitters-power-together", ["render", "bad.yaml"], _config(scene={"emitters": [
+        {"position": [0, 0, 0], "normal": [0, -1, 0], "size": [1e30, 6e29], "radiance": [1e30, 1e30, 1e30]},
+        {"position": [0, 1, 0], "normal": [0, -1, 0], "size": [1e30, 6e29], "radiance": [1e30, 1e30, 1e30]}]}), None),
 ]
 
 
@@ -218,7 +259,7 @@ def workdir(tmp_path, monkeypatch):
 
 
 #: Inputs found only by reading a file the scene needs: the read is the check.
-SCENE_READ = {"mesh-nan-vertices"}
+SCENE_READ = {"mesh-nan-vertices", *(c[0] for c in CASES if c[0].startswith("scene-"))}
 
 
 @pytest.mark.parametrize("case, argv, config, lights", CASES, ids=[c[0] for c in CASES])

@@ -4,6 +4,8 @@ for an unlit mesh that the user lit otherwise."""
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 import trimesh
@@ -111,3 +113,71 @@ def test_an_up_parallel_to_the_normal_is_refused_by_the_mesh_builder_too():
     e = AreaLight.model_construct(**{**entry(position=[0, 0, 0], size=[1, 1]).model_dump(), "up": [0, 2, 0]})
     with pytest.raises(LightcutsError, match="scene.emitters.3.up: zero or parallel"):
         emitter_scene(e, key="scene.emitters.3")
+
+
+# Emission against the light limits, checked on the scene (lightcuts.limits).
+
+def _triangle(emission, size=1.0):
+    from lightcuts.scene.scene import Scene
+
+    return Scene([[0, 0, 0], [size, 0, 0], [0, size, 0]], [[0, 1, 2]], 0.5, 0.0, 0.0, emission)
+
+
+@pytest.mark.parametrize("emission, size, problem", [
+    ([np.nan, 1, 1], 1.0, "1 triangles emit NaN or infinite radiance"),
+    ([np.inf, 0, 0], 1.0, "NaN or infinite radiance"),
+    ([-1, 0, 0], 1.0, "negative radiance"),
+    ([1.01e30, 0, 0], 1.0, "radiance above 1e+30"),
+    ([1e30, 0, 0], 2e15, "emitted power 2e+60 W/sr"),  # area 2e30
+])
+def test_emission_beyond_the_light_limits_is_refused_naming_the_source(emission, size, problem, monkeypatch):
+    import lightcuts.scene.scene as scene_module
+
+    if "power" in problem:
+        monkeypatch.setattr(scene_module, "MAX_EMITTED_POWER", 1.99e60)
+    with pytest.raises(LightcutsError, match="^a source: .*" + re.escape(problem)):
+        _triangle(emission, size).check_emission("a source")
+    if "power" in problem:
+        monkeypatch.setattr(scene_module, "MAX_EMITTED_POWER", 2e60)
+        _triangle(emission, size).check_emission("a source")
+
+
+def test_the_limits_hold_what_the_config_can_place_once():
+    """One quad of the largest size and radiance a config takes (1e30 each) is within the limits;
+    two of them are not."""
+    _triangle([1e30, 1e30, 1e30], 1e30 * 2 ** 0.5).check_emission("x")
+    with pytest.raises(LightcutsError, match=r"^scene.emitters.3: emitted power 2e\+90"):
+        emitter_scene(entry(grid={"lo": [0, 0, 0], "hi": [1, 0, 0], "count": [2, 1, 1]}, size=[1e30, 1e30],
+                            radiance=[1e30, 1e30, 1e30]), key="scene.emitters.3")
+
+
+def test_a_mesh_beyond_the_power_limit_is_named_by_its_key(tmp_path):
+    """A mesh scaled by 1e30 whose config material emits 1e30: 4e90 W/sr from the mesh alone."""
+    from lightcuts.scene.loaders import load_mesh
+
+    (tmp_path / "q.obj").write_text("v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nf 1 2 3\nf 1 3 4\n")
+    with pytest.raises(LightcutsError, match=r"^scene.meshes.4: .*q.obj: emitted power 4e\+90 W/sr"):
+        load_mesh(tmp_path / "q.obj", scale=1e30, material={"emission": [1e30] * 3}, key="scene.meshes.4")
+    assert load_mesh(tmp_path / "q.obj", scale=1e29, material={"emission": [1e30] * 3}).emission.max() == 1e30
+
+
+def test_nan_emission_is_not_taken_for_no_emission():
+    """Lights made from a scene with NaN emission (which no loader lets in, but a Scene made by
+    hand can hold): the NaN is named, not 'no emissive triangles'."""
+    from lightcuts.config.schema import config_from_dict
+    from lightcuts.lights.generate import lights_from_config
+
+    cfg = config_from_dict({"scene": {"builtin": "cornell"}, "lights": {"direct": {"count": 4}}}, "x.yaml", ".")
+    with pytest.raises(LightcutsError, match="^scene 'scene': 1 triangles emit NaN or infinite radiance"):
+        lights_from_config(cfg, _triangle([np.nan, 1, 1]))
+
+
+def test_mtl_emission_above_the_radiance_limit_names_the_line(tmp_path):
+    from lightcuts.scene.loaders import load_mesh
+
+    (tmp_path / "k.obj").write_text("mtllib k.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl lamp\nf 1 2 3\n")
+    (tmp_path / "k.mtl").write_text("newmtl lamp\nKe 1e30 2 3\n")
+    assert load_mesh(tmp_path / "k.obj").emission.max() == 1e30
+    (tmp_path / "k.mtl").write_text("newmtl lamp\nKe 2e30 2 3\n")
+    with pytest.raises(LightcutsError, match=r"k.mtl:2: material 'lamp': Ke 2e30 2 3: emitted radiance above 1e\+30"):
+        load_mesh(tmp_path / "k.obj")

@@ -266,7 +266,7 @@ def test_obj_mtl_materials_per_usemtl_group(obj_file):
 
 def test_obj_missing_mtl_warns_and_uses_default(tmp_path):
     p = _write(tmp_path, "lonely.obj", "mtllib gone.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl red\nf 1 2 3\n")
-    with pytest.warns(UserWarning, match=r"gone\.mtl not found") as w:
+    with pytest.warns(UserWarning, match=r"gone\.mtl: no such file") as w:
         s = load_mesh(p)
     assert str(p) in str(w[0].message)
     assert np.all(s.albedo == 0.5)

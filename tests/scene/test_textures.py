@@ -18,15 +18,7 @@ from lightcuts.scene.materials import pbr_to_phong
 from lightcuts.scene.scene import Scene
 from lightcuts.scene.textures import (TextureSet, albedo_at, face_texture_means, image_to_linear, srgb_to_linear,
                                       texture_lookup, uv_maps)
-
-RED, BLUE = (200, 50, 50), (30, 120, 220)
-
-
-def checkerboard(n: int = 4, px: int = 8) -> np.ndarray:
-    """(n px, n px, 3) uint8: n x n squares, RED where row + column is even (row 0 at the top)."""
-    i = np.arange(n * px) // px
-    even = (i[:, None] + i[None, :]) % 2 == 0
-    return np.where(even[:, :, None], np.array(RED, np.uint8), np.array(BLUE, np.uint8)).astype(np.uint8)
+from scene_files import BLUE, RED, checkerboard, edit_glb, quad_obj
 
 
 def test_srgb_decoding_is_the_standard_curve():
@@ -38,6 +30,7 @@ def test_srgb_decoding_is_the_standard_curve():
 
 
 def test_uv_maps_give_every_point_its_interpolated_coordinates():
+    """To whole periods of the repeat, which the maps take off corner 0 (its u, v in [0, 1))."""
     rng = np.random.default_rng(3)
     tri = rng.normal(size=(50, 3, 3))
     uv = rng.uniform(-2, 3, size=(50, 3, 2))
@@ -47,7 +40,10 @@ def test_uv_maps_give_every_point_its_interpolated_coordinates():
     expected = np.einsum("fk,fkc->fc", b, uv)
     got_u = maps[:, 9] + np.einsum("fc,fc->f", x - maps[:, 0:3], maps[:, 3:6])
     got_v = maps[:, 10] + np.einsum("fc,fc->f", x - maps[:, 0:3], maps[:, 6:9])
-    np.testing.assert_allclose(np.stack([got_u, got_v], 1), expected, atol=1e-9)
+    off = np.stack([got_u, got_v], 1) - expected
+    np.testing.assert_allclose(off, np.round(off), atol=1e-9)
+    np.testing.assert_array_equal(np.round(off), -np.floor(uv[:, 0]))
+    assert np.all((maps[:, 9:11] >= 0) & (maps[:, 9:11] < 1))
 
 
 def test_the_lookup_is_bilinear_between_texel_centres_and_repeats():
@@ -100,20 +96,10 @@ def test_textured_scenes_concatenate_save_and_load(tmp_path):
     assert not concatenate_scenes([plain, plain]).textured
 
 
-def _quad_obj(folder, mtl: str, texture: np.ndarray | None = None, name: str = "quad"):
-    """A 2 x 2 quad in z = 0 facing +z with uv (0, 0) at (-1, -1) and (1, 1) at (1, 1)."""
-    (folder / f"{name}.obj").write_text(
-        f"mtllib {name}.mtl\nv -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\n"
-        "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nusemtl m\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n")
-    (folder / f"{name}.mtl").write_text(mtl)
-    if texture is not None:
-        Image.fromarray(texture).save(folder / "tex.png")
-
-
 def test_map_kd_is_read_with_its_options_and_relative_path(tmp_path):
     (tmp_path / "maps").mkdir()
     Image.fromarray(checkerboard()).save(tmp_path / "maps" / "c.png")
-    _quad_obj(tmp_path, "newmtl m\nKd 0.5 0.5 0.5\nmap_Kd -blendu on -s 2 3 1 -o 0.25 0.5 maps/c.png\n")
+    quad_obj(tmp_path, "newmtl m\nKd 0.5 0.5 0.5\nmap_Kd -blendu on -s 2 3 1 -o 0.25 0.5 maps/c.png\n")
     s = load_mesh(tmp_path / "quad.obj")
     assert s.textured and list(s.texture) == [0, 0] and s.textures.names[0].endswith("c.png")
     np.testing.assert_allclose(s.uv[0], [[0.25, 0.5], [2.25, 0.5], [2.25, 3.5]])
@@ -124,15 +110,15 @@ def test_map_kd_is_read_with_its_options_and_relative_path(tmp_path):
 
 
 def test_a_missing_or_broken_texture_is_one_line_naming_the_material(tmp_path):
-    _quad_obj(tmp_path, "newmtl m\nKd 1 1 1\nmap_Kd nowhere.png\n")
+    quad_obj(tmp_path, "newmtl m\nKd 1 1 1\nmap_Kd nowhere.png\n")
     with pytest.raises(LightcutsError, match=r"scene.meshes.0: .*material 'm': texture .*nowhere.png: no such file"):
         load_mesh(tmp_path / "quad.obj")
     (tmp_path / "bad.png").write_bytes(b"not an image")
-    _quad_obj(tmp_path, "newmtl m\nKd 1 1 1\nmap_Kd bad.png\n")
+    quad_obj(tmp_path, "newmtl m\nKd 1 1 1\nmap_Kd bad.png\n")
     with pytest.raises(LightcutsError, match="cannot read image") as e:
         load_mesh(tmp_path / "quad.obj")
     assert "\n" not in str(e.value)
-    _quad_obj(tmp_path, "newmtl m\nmap_Kd -s\n")
+    quad_obj(tmp_path, "newmtl m\nmap_Kd -s\n")
     with pytest.raises(LightcutsError, match="map_Kd -s needs a value"):
         load_mesh(tmp_path / "quad.obj")
 
@@ -158,7 +144,7 @@ def test_a_textured_checkerboard_renders_each_square_at_its_pixels(tmp_path):
     """A sun straight above the quad (irradiance pi) makes the radiance the albedo: each square of
     the 4 x 4 checkerboard, seen through the pixels wholly inside it, has mean Kd * decoded colour
     within 2%; the squares alternate in the image as in the texture (row 0 at the top)."""
-    _quad_obj(tmp_path, "newmtl m\nKd 0.8 0.9 1.0\nmap_Kd tex.png\n", checkerboard())
+    quad_obj(tmp_path, "newmtl m\nKd 0.8 0.9 1.0\nmap_Kd tex.png\n", checkerboard())
     (tmp_path / "run.yaml").write_text(
         "scene: {meshes: [{file: quad.obj}]}\n"
         "camera: {position: [0, 0, 3], look_at: [0, 0, 0], up: [0, 1, 0], fov: 30, resolution: [64, 64]}\n"
@@ -219,6 +205,17 @@ def _room_parts():
     return walls, fl, lamp
 
 
+def _emissive_strength(doc):
+    """Each emissiveFactor above 1 as its largest value times a factor of at most 1, the largest
+    value given by KHR_materials_emissive_strength (what trimesh's exporter does not write)."""
+    for m in doc["materials"]:
+        top = max(m.get("emissiveFactor", [0]))
+        if top > 1:
+            m["emissiveFactor"] = [x / top for x in m["emissiveFactor"]]
+            m["extensions"] = {"KHR_materials_emissive_strength": {"emissiveStrength": top}}
+            doc["extensionsUsed"] = ["KHR_materials_emissive_strength"]
+
+
 def test_a_gltf_renders_like_its_obj_mtl_equivalent(tmp_path):
     from trimesh.visual.material import PBRMaterial
 
@@ -238,6 +235,7 @@ def test_a_gltf_renders_like_its_obj_mtl_equivalent(tmp_path):
     for name, m in (("a_walls", walls), ("b_floor", floor), ("c_lamp", lamp)):
         sc.add_geometry(m, node_name=name, geom_name=name)
     sc.export(tmp_path / "room.glb")
+    edit_glb(tmp_path / "room.glb", _emissive_strength)  # glTF's emissiveFactor is at most 1
 
     (rd, rs, n), (frd, frs, fn) = ((r.tolist(), s.tolist(), n) for r, s, n in (
         pbr_to_phong(base, metallic, rough), pbr_to_phong([1, 1, 1], 0.0, 1.0)))
