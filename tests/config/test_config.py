@@ -226,3 +226,24 @@ def test_unknown_override_is_named_in_full(tmp_path, key):
 def test_config_path_of_a_wrong_type(path):
     with pytest.raises(LightcutsError, match=r"^config .*: expected a path"):
         load_config(path)
+
+
+def test_readme_table_of_limits_is_lightcuts_limits():
+    """Every row of the README's table of limits gives the value of lightcuts.limits, and every
+    bound on work or memory has its row."""
+    readme = (CONFIGS[0].parents[1] / "README.md").read_text()
+    table = readme[readme.index("| What | Limit |"):].split("\n\n")[0].splitlines()[2:]
+    rows = {}
+    for line in table:
+        what, cell = (c.strip() for c in line.strip("|").split("|"))
+        first = cell.split()[0].replace(",", "")
+        rows[what] = 2 ** int(first[3:]) if first.startswith("2**") else int(first)
+    expected = {"pixels (": limits.MAX_PIXELS, "`render.spp` (": limits.MAX_SPP, "`render.spp` x": limits.MAX_SPP,
+                "eye rays": limits.MAX_EYE_RAYS, "`render.passes`": limits.MAX_PASSES,
+                "`lights.direct.count`": limits.MAX_LIGHTS, "`lights.indirect.max_bounces`": limits.MAX_BOUNCES,
+                "triangles made": limits.MAX_EMITTER_TRIANGLES, "`compare --pixels`": limits.MAX_PIXELS,
+                "`reference --spp`": limits.MAX_REFERENCE_SPP, "`scaling --repeats`": limits.MAX_REPEATS,
+                "entries of": limits.MAX_POINTS}
+    assert len(rows) == len(expected)
+    for start, value in expected.items():
+        assert [v for what, v in rows.items() if what.startswith(start)] == [value], start
