@@ -23,7 +23,8 @@ MAX_EYE_RAYS : the most eye rays a run traces, pixels x spp x passes (x continua
     spp x passes up to 262,144
 MAX_LIGHTS : the most lights a config asks for (each count, and direct + indirect + environment in
     all; a light file's lights): the light set, its tree, the forest and a builder's scratch take
-    about 1.1 KB a light, 4.4 GB at the limit (the papers' scenes have 10^5 to 10^6)
+    about 0.9 KB a light (every builder, at 10^6 lights), 3.6 GB at the limit (the papers' scenes
+    have 10^5 to 10^6)
 MAX_BOUNCES : the most ``lights.indirect.max_bounces`` and ``reference --max-depth``: the particle
     tracer keeps a VPL slot per bounce of every path in flight; 0.99**1024 < 4e-5 of a path's power
     is left after that many bounces on white walls
