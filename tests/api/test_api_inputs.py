@@ -29,22 +29,6 @@ def tiny(tmp_path_factory):
     return path
 
 
-@pytest.fixture
-def no_work(monkeypatch):
-    """The scene, lights and trees made, by name, in order; a call that made none did no work."""
-    import lightcuts.lights.generate
-    import lightcuts.scene.build
-    import lightcuts.trees.build
-
-    calls = []
-    for module, name in ((lightcuts.scene.build, "scene_from_config"),
-                         (lightcuts.lights.generate, "lights_from_config"),
-                         (lightcuts.trees.build, "build_tree")):
-        fn = getattr(module, name)
-        monkeypatch.setattr(module, name, lambda *a, _fn=fn, _name=name, **k: (calls.append(_name), _fn(*a, **k))[1])
-    return calls
-
-
 def _one_line(exc_info, start: str) -> None:
     msg = str(exc_info.value)
     assert "\n" not in msg and msg.startswith(start), msg
@@ -73,14 +57,14 @@ def _one_line(exc_info, start: str) -> None:
     (lambda p: lightcuts.load_config(p, **{"no.such.key": 1}), f"{{p}}: no.such.key: unknown key"),
     (lambda p: lightcuts.load_config(p, render__spp=limits.MAX_SPP + 1), "{p}: render.spp: "),
 ])
-def test_bad_argument_one_line_before_work(tiny, no_work, call, start):
+def test_bad_argument_one_line_before_work(tiny, stage_calls, call, start):
     with pytest.raises(LightcutsError) as e:
         call(tiny)
     _one_line(e, start.replace("{p}", str(tiny)))
-    assert no_work == []
+    assert stage_calls == []
 
 
-def test_a_config_assigned_after_loading_is_validated_again(tiny, no_work):
+def test_a_config_assigned_after_loading_is_validated_again(tiny, stage_calls):
     cfg = lightcuts.load_config(tiny)
     cfg.render.spp = 10**9  # pydantic does not check an assignment
     with pytest.raises(LightcutsError) as e:
@@ -91,7 +75,7 @@ def test_a_config_assigned_after_loading_is_validated_again(tiny, no_work):
     with pytest.raises(LightcutsError) as e:
         lightcuts.compare(cfg)
     _one_line(e, "config: render: ")
-    assert no_work == []
+    assert stage_calls == []
 
 
 @pytest.fixture(scope="module")

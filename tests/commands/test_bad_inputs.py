@@ -20,6 +20,7 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from lightcuts import limits
 from lightcuts.errors import LightcutsError
 
 ROOT = Path(__file__).parents[2]
@@ -227,26 +228,16 @@ def _snapshot(folder: Path) -> dict:
 
 
 @pytest.fixture
-def workdir(tmp_path, monkeypatch):
-    """A folder with a config, an older run's outputs in renders/old and old/, and a recorder of
-    the stage functions called."""
-    import lightcuts.lights.generate
-    import lightcuts.scene.build
-    import lightcuts.trees.build
-
+def workdir(tmp_path, monkeypatch, stage_calls):
+    """A folder with a config, an older run's outputs in renders/old and old/, and the recorder of
+    the stage functions called (:func:`conftest.stage_calls`)."""
     _setup_files(tmp_path)
     for folder in (tmp_path / "renders" / "old", tmp_path / "old"):
         folder.mkdir(parents=True)
         for name, data in OLD_SET.items():
             (folder / name).write_bytes(data)
-    calls = []
-    for module, name in ((lightcuts.scene.build, "scene_from_config"),
-                         (lightcuts.lights.generate, "lights_from_config"),
-                         (lightcuts.trees.build, "build_tree")):
-        fn = getattr(module, name)
-        monkeypatch.setattr(module, name, lambda *a, _fn=fn, _name=name, **k: (calls.append(_name), _fn(*a, **k))[1])
     monkeypatch.chdir(tmp_path)
-    return tmp_path, calls
+    return tmp_path, stage_calls
 
 
 #: Inputs found only by reading a file the scene needs: the read is the check.
@@ -352,8 +343,6 @@ def test_special_file_out_refused(workdir, capsys):
 
 #: (command and options before the bounded one, the option, its limit): the limit passes the option's
 #: check (the run then stops at the later --out check), one more is refused naming option and limit.
-from lightcuts import limits  # noqa: E402
-
 OPTION_BOUNDS = [
     (["compare", "run.yaml"], "--pixels", limits.MAX_PIXELS),
     (["scaling", "run.yaml", "--sizes", "100"], "--repeats", limits.MAX_REPEATS),

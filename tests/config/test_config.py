@@ -4,6 +4,7 @@ from pathlib import Path
 
 import pytest
 
+from lightcuts import limits
 from lightcuts.config import load_config
 from lightcuts.errors import LightcutsError
 
@@ -107,8 +108,6 @@ def test_paths_resolve_against_config_folder(tmp_path):
 
 # Limits on what sizes a run's work and memory (lightcuts.limits): the limit itself loads, one past it
 # is refused with one line naming the key and the limit.
-
-from lightcuts import limits  # noqa: E402
 
 _NO_DIRECT = {"lights.direct.count": 0}
 _ENV = {"lights.environment": {"procedural": {}}, "lights.direct.count": 0}
