@@ -51,7 +51,8 @@ def _config(config):
             try:
                 data = config.model_dump()
             except Exception as exc:  # a field assigned something pydantic cannot read back
-                raise LightcutsError(f"config: a field holds a value that is not a config value ({one_line(exc)})") from None
+                raise LightcutsError(f"config: a field holds a value that is not a config value "
+                                     f"({one_line(exc)})") from None
         return config_from_dict(data, "config", config.base_dir), None
     if not isinstance(config, (str, os.PathLike)):
         raise LightcutsError(f"config {config!r}: expected a RunConfig (lightcuts.load_config) or the path of a "

@@ -21,9 +21,10 @@ _UNIT_TOL = 1e-6
 
 def check_lights(lights: LightSet, source: str = "lights") -> tuple[np.ndarray, np.ndarray]:
     """LightcutsError naming ``source`` (e.g. the light file) and the array at fault, before anything
-    reaches a kernel that computes with it; returns the (N, 3) normals the tree uses (oriented lights: ``lights.normal`` rescaled to unit
-    length, see build_tree; other types: ``lights.normal``) and the (N,) luminances
-    (``lights.luminance``, bit for bit, from the same read of the arrays)."""
+    reaches a kernel that computes with it; returns the (N, 3) normals the tree uses (oriented
+    lights: ``lights.normal`` rescaled to unit length, see build_tree; other types:
+    ``lights.normal``) and the (N,) luminances (``lights.luminance``, bit for bit, from the same read
+    of the arrays)."""
     if not isinstance(lights, LightSet):
         raise TypeError(f"build_tree expects a LightSet, got {type(lights).__name__}")
     if len(lights) == 0:

@@ -218,8 +218,8 @@ CASES = [
 UNWRITABLE = ["/proc/lightcuts-out", "/sys/lightcuts-out/deeper"]
 OUT_COMMANDS = {"render": [], "lights": [], "tree": [], "compare": [], "scaling": ["--sizes", "100"],
                 "scaling-gather": ["--gather", "1,4"], "accel": [], "reference": ["--renderer", "lightcuts"]}
-CASES += [(f"unwritable-{where.split('/')[1]}-{name}", [name.split("-")[0], "run.yaml", *extra, "--out", where], None, None)
-          for name, extra in OUT_COMMANDS.items() for where in UNWRITABLE]
+CASES += [(f"unwritable-{where.split('/')[1]}-{name}", [name.split("-")[0], "run.yaml", *extra, "--out", where],
+           None, None) for name, extra in OUT_COMMANDS.items() for where in UNWRITABLE]
 
 
 def _snapshot(folder: Path) -> dict:
