@@ -96,46 +96,112 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
                 _TEMPORARIES.discard(tmp)
 
 
+def as_path(value, key: str) -> Path:
+    """``value`` as a Path; LightcutsError naming ``key`` unless it is a str or os.PathLike naming a
+    path (not empty, no NUL character)."""
+    if not isinstance(value, (str, os.PathLike)):
+        raise LightcutsError(f"{key} {value!r}: expected a path (str or os.PathLike), got {type(value).__name__}")
+    try:
+        text = os.fspath(value)
+    except TypeError as exc:
+        raise LightcutsError(f"{key} {value!r}: expected a path ({one_line(exc)})") from None
+    if not isinstance(text, str) or not text or "\0" in text:
+        raise LightcutsError(f"{key} {value!r}: expected a path (a non-empty text without NUL characters)")
+    return Path(text)
+
+
+@contextlib.contextmanager
+def _path_errors(key: str, path: Path) -> Iterator[None]:
+    """An OSError of a check (a name too long, a folder that cannot be listed) as one line naming
+    ``key`` and ``path``."""
+    try:
+        yield
+    except OSError as exc:
+        raise LightcutsError(f"{key} {str(path)!r}: {exc.strerror or one_line(exc)}") from None
+
+
 def check_output_dir(path: str | os.PathLike, key: str, allowed=OUTPUT_FILES) -> Path:
     """LightcutsError naming ``key`` unless ``path`` can become a run's output folder: it is a
     folder holding only ``allowed`` names (shell patterns; default OUTPUT_FILES), or it can be
-    created in a writable folder (checked before any work, so that a render does not fail at its
-    end)."""
+    created, and a folder can be made beside it (:func:`output_set` makes the new set there), which
+    :func:`probe_writable` proves before any work, so that a run does not fail at its end."""
     import fnmatch
 
-    path = Path(path)
-    if path.exists() or path.is_symlink():
-        if not path.is_dir():
-            raise LightcutsError(f"{key} {str(path)!r}: exists and is not a folder")
-        other = sorted(p.name for p in path.iterdir() if not any(fnmatch.fnmatchcase(p.name, a) for a in allowed))
-        if other:
-            raise LightcutsError(f"{key} {str(path)!r}: the folder holds files that are not a run's outputs "
-                                 f"({', '.join(other[:3])}{', ...' if len(other) > 3 else ''}); "
-                                 "give a new or empty folder")
-    check_creatable(path.absolute().parent, key, path)
+    path = as_path(path, key)
+    with _path_errors(key, path):
+        if path.exists() or path.is_symlink():
+            if not path.is_dir():
+                raise LightcutsError(f"{key} {str(path)!r}: exists and is not a folder")
+            other = sorted(p.name for p in path.iterdir()
+                           if not any(fnmatch.fnmatchcase(p.name, a) for a in allowed))
+            if other:
+                raise LightcutsError(f"{key} {str(path)!r}: the folder holds files that are not a run's outputs "
+                                     f"({', '.join(other[:3])}{', ...' if len(other) > 3 else ''}); "
+                                     "give a new or empty folder")
+        probe_writable(path.absolute().parent, key, path, folder_entry=True)
     return path
 
 
 def check_output_file(path: str | os.PathLike, key: str) -> Path:
-    """LightcutsError naming ``key`` unless a file can be written at ``path`` (not a folder; its
-    folder exists, or can be created, and is writable)."""
-    path = Path(path)
-    if path.is_dir():
-        raise LightcutsError(f"{key} {str(path)!r}: is a folder")
-    check_creatable(path.absolute().parent, key, path)
+    """LightcutsError naming ``key`` unless a file can be written at ``path``: not a folder nor a
+    device or other special file (the atomic write would replace it), and a file can be made in its
+    folder, or the folder created (:func:`probe_writable`)."""
+    path = as_path(path, key)
+    with _path_errors(key, path):
+        if path.is_dir():
+            raise LightcutsError(f"{key} {str(path)!r}: is a folder")
+        if path.exists() and not path.is_file():
+            raise LightcutsError(f"{key} {str(path)!r}: exists and is not a regular file")
+        probe_writable(path.absolute().parent, key, path)
     return path
 
 
-def check_creatable(folder: Path, key: str, target: Path) -> None:
-    """``folder`` is, or can be made, a writable folder: its nearest existing ancestor is a
-    writable folder."""
+def check_store_dir(path: str | os.PathLike, key: str) -> Path:
+    """LightcutsError naming ``key`` unless ``path`` is, or can be made, a folder that files can be
+    written into (a store filled as a run goes, :class:`lightcuts.report.compare_store.RowStore`)."""
+    path = as_path(path, key)
+    with _path_errors(key, path):
+        if (path.exists() or path.is_symlink()) and not path.is_dir():
+            raise LightcutsError(f"{key} {str(path)!r}: exists and is not a folder")
+        probe_writable(path.absolute(), key, path)
+    return path
+
+
+def probe_writable(folder: Path, key: str, target: Path, folder_entry: bool = False) -> None:
+    """Prove that ``folder`` is, or can be made, a folder that takes a new entry, by making one and
+    removing it: a temporary file (``folder_entry``: a folder, as :func:`output_set` makes) in
+    ``folder`` itself when it exists, else a temporary folder in its nearest existing ancestor, as
+    ``mkdir -p`` would begin. Permissions alone do not tell: root passes every permission check, yet
+    cannot write in /proc or on a read-only mount. LightcutsError naming ``key`` and ``target``
+    otherwise; nothing is left behind either way."""
     p = folder
     while not (p.exists() or p.is_symlink()):
         p = p.parent
     if not p.is_dir():
         raise LightcutsError(f"{key} {str(target)!r}: {str(p)!r} is not a folder")
-    if not os.access(p, os.W_OK | os.X_OK):
-        raise LightcutsError(f"{key} {str(target)!r}: cannot write in {str(p)!r} (permission denied)")
+    make_folder = folder_entry or p != folder
+    with _LOCK:
+        probe = p / f".lightcuts-probe-{secrets.token_hex(4)}"
+        try:
+            if make_folder:
+                os.mkdir(probe, 0o700)
+            else:
+                os.close(os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600))
+        except OSError as exc:
+            raise LightcutsError(f"{key} {str(target)!r}: cannot write in {str(p)!r} (a new entry there failed: "
+                                 f"{exc.strerror or one_line(exc)})") from None
+        _TEMPORARIES.add(probe)
+        try:
+            if make_folder:
+                os.rmdir(probe)
+            else:
+                os.unlink(probe)
+        except OSError as exc:
+            _remove(probe)
+            raise LightcutsError(f"{key} {str(target)!r}: cannot remove a new entry of {str(p)!r} "
+                                 f"({exc.strerror or one_line(exc)})") from None
+        finally:
+            _TEMPORARIES.discard(probe)
 
 
 @contextlib.contextmanager

@@ -54,6 +54,23 @@ def thread_counts():
     return (1, 2), num_threads
 
 
+@pytest.fixture
+def stage_calls(monkeypatch):
+    """The names of the stage functions called in this process, in order (a scene, lights, a tree
+    made): a call that leaves the list empty did no work."""
+    import lightcuts.lights.generate
+    import lightcuts.scene.build
+    import lightcuts.trees.build
+
+    calls = []
+    for module, name in ((lightcuts.scene.build, "scene_from_config"),
+                         (lightcuts.lights.generate, "lights_from_config"),
+                         (lightcuts.trees.build, "build_tree")):
+        fn = getattr(module, name)
+        monkeypatch.setattr(module, name, lambda *a, _fn=fn, _name=name, **k: (calls.append(_name), _fn(*a, **k))[1])
+    return calls
+
+
 _RECORDING = """
 import json, sys
 import lightcuts.scene.build, lightcuts.lights.generate, lightcuts.trees.build

@@ -14,6 +14,7 @@ Importing this module loads no stage; the stages are imported when a function ru
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 from lightcuts.api.comparing import DEFAULT_PIXELS, Comparison
@@ -35,12 +36,69 @@ def load_config(path, **overrides):
 
 
 def _config(config):
-    """(RunConfig, the file it came from or None) of a RunConfig or a path."""
+    """(RunConfig, the file it came from or None) of a RunConfig or a path. A RunConfig is validated
+    again (its fields can be assigned after loading)."""
+    import warnings
+
     from lightcuts.config import RunConfig
+    from lightcuts.config.schema import config_from_dict
+    from lightcuts.errors import LightcutsError
+    from lightcuts.io import one_line
 
     if isinstance(config, RunConfig):
-        return config, None
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # pydantic's notice of a field assigned a wrong type
+            try:
+                data = _set_fields(config)
+            except Exception as exc:  # a field assigned something pydantic cannot read back
+                raise LightcutsError(f"config: a field holds a value that is not a config value "
+                                     f"({one_line(exc)})") from None
+        return config_from_dict(data, "config", config.base_dir), None
+    if not isinstance(config, (str, os.PathLike)):
+        raise LightcutsError(f"config {config!r}: expected a RunConfig (lightcuts.load_config) or the path of a "
+                             f"YAML run file, got {type(config).__name__}")
     return load_config(config), str(Path(config))
+
+
+def _set_fields(model) -> dict:
+    """The fields of a pydantic model that were given (in the file, by an override or by assignment),
+    as plain data, nested models recursed into: validated again, the config keeps the difference
+    between a value left at its default and one given (``lights.direct.count`` in a scene without
+    emitters)."""
+    from pydantic import BaseModel
+
+    out = {}
+    for name in type(model).model_fields:
+        value = getattr(model, name)
+        if isinstance(value, BaseModel):
+            sub = _set_fields(value)
+            if sub or name in model.model_fields_set:
+                out[name] = sub
+        elif name in model.model_fields_set:
+            out[name] = model.model_dump(include={name})[name] if not isinstance(value, str) else value
+    return out
+
+
+def _flag(value, key: str) -> bool:
+    """``value`` as a bool; LightcutsError naming ``key`` unless it is one (Python's or numpy's)."""
+    from lightcuts.errors import LightcutsError
+
+    if isinstance(value, bool) or type(value).__name__ == "bool_":
+        return bool(value)
+    raise LightcutsError(f"{key} {value!r}: expected True or False, got {type(value).__name__}")
+
+
+def _count(value, key: str, lo: int, hi: int) -> int:
+    """``value`` as an int in [lo, hi]; LightcutsError naming ``key`` and the bounds otherwise."""
+    import numbers
+
+    from lightcuts.errors import LightcutsError
+
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        raise LightcutsError(f"{key} {value!r}: expected an integer, got {type(value).__name__}")
+    if not lo <= value <= hi:
+        raise LightcutsError(f"{key} {value}: must be from {lo} to {hi:,}")
+    return int(value)
 
 
 def render(config, *, reference: bool = False, progress: bool = True) -> Render:
@@ -55,6 +113,7 @@ def render(config, *, reference: bool = False, progress: bool = True) -> Render:
     from lightcuts.commands.plan import plan_run
 
     cfg, source = _config(config)
+    reference, progress = _flag(reference, "reference"), _flag(progress, "progress")
     return render_run(cfg, plan_run(cfg, render=True), source, reference, progress)
 
 
@@ -76,18 +135,20 @@ def compare(config, builders=None, metrics=None, *, pixels: int = DEFAULT_PIXELS
     """
     from lightcuts.api.comparing import compare_run, resolve_rows, sample_pixels
     from lightcuts.commands.plan import plan_run
-    from lightcuts.errors import LightcutsError
+    from lightcuts.io import check_store_dir
+    from lightcuts.limits import MAX_PIXELS, MAX_REFERENCE_SPP
     from lightcuts.report.compare_store import RowStore
     from lightcuts.scene.build import image_size
 
     cfg, source = _config(config)
-    if pixels < 0:
-        raise LightcutsError(f"pixels {pixels}: must be >= 0")
+    pixels = _count(pixels, "pixels", 0, MAX_PIXELS)
+    force, progress = _flag(force, "force"), _flag(progress, "progress")
+    if store is not None:
+        store = check_store_dir(store, "store")
     if mitsuba_spp is not None:
         from lightcuts.mitsuba import load_mitsuba
 
-        if mitsuba_spp < 1:
-            raise LightcutsError(f"mitsuba_spp {mitsuba_spp}: must be at least 1")
+        mitsuba_spp = _count(mitsuba_spp, "mitsuba_spp", 1, MAX_REFERENCE_SPP)
         load_mitsuba()
     rows = resolve_rows(cfg, builders, metrics, keys=("builders", "metrics"))
     plans = [plan_run(cfg, render=True, tree=spec) for _, spec in rows]

@@ -35,8 +35,10 @@ _WARM_LIGHTS = 64
 
 
 def names(text, key: str) -> list[str]:
-    """Comma-separated names (or a sequence of them), none twice; LightcutsError naming ``key``."""
-    items = text.split(",") if isinstance(text, str) else [str(t) for t in text]
+    """Comma-separated names (or a list or tuple of them), none twice; LightcutsError naming ``key``."""
+    if not isinstance(text, (str, list, tuple)) or not all(isinstance(t, str) for t in text):
+        raise LightcutsError(f"{key} {text!r}: expected names, comma-separated or as a list of texts")
+    items = text.split(",") if isinstance(text, str) else list(text)
     out = [b.strip() for b in items if b.strip()]
     if not out:
         raise LightcutsError(f"{key} {text!r}: no names given")
@@ -131,7 +133,7 @@ class Comparison:
         from lightcuts.report.compare import write_cut_images, write_tables
         from lightcuts.report.images import write_exr, write_png
 
-        out = check_output_dir(Path(folder), "folder", ALLOWED)
+        out = check_output_dir(folder, "folder", ALLOWED)
         report, rows = self.report, self.report["rows"]
         diff = tuple(report["diff"]) if report["diff"] else None
         with output_set(out, keep=("rows",)) as tmp:

@@ -54,7 +54,7 @@ class Render:
         from lightcuts.report.images import write_exr, write_heatmap, write_png
 
         cfg, report = self.config, self.report
-        out = check_output_dir(Path(folder), "folder")
+        out = check_output_dir(folder, "folder")
         with output_set(out, keep=SUBRUN_FOLDERS) as tmp:
             write_exr(tmp / "image.exr", self.image)
             write_png(tmp / "image.png", self.image, cfg.render.exposure)

@@ -25,6 +25,7 @@ import numpy as np
 
 from lightcuts.commands.common import add_set, progress_bar
 from lightcuts.errors import LightcutsError
+from lightcuts.limits import MAX_REPEATS
 
 #: Eye rays per pixel of the shadows image, each with one shadow ray.
 SHADOW_SPP = 16
@@ -82,16 +83,18 @@ def run_accel(args) -> dict:
     from lightcuts.io import check_output_dir
 
     cfg = load_config(args.config, args.overrides)
-    if args.repeats < 1:
-        raise LightcutsError(f"--repeats {args.repeats}: must be at least 1")
+    if not 1 <= args.repeats <= MAX_REPEATS:
+        raise LightcutsError(f"--repeats {args.repeats}: must be from 1 to {MAX_REPEATS} "
+                             "(lightcuts.limits.MAX_REPEATS)")
     sweep = getattr(args, "sweep", None)
     entries = resolve_casters(args.casters if args.casters is not None or sweep is None else ",".join(SWEEP_CASTERS))
     plan = plan_run(cfg)
     if sweep == "rooms":
-        parse_counts(args.rooms)
         if plan.scene_type is None or "rooms" not in plan.scene_type.params:
             raise LightcutsError(f"--sweep rooms: {args.config} is not a rooms scene (scene.procedural.type: rooms, "
                                  "e.g. configs/rooms.yaml)")
+        for n in parse_counts(args.rooms):  # every count's scene checked before any work
+            plan_run(load_config(args.config, list(args.overrides) + [f"scene.procedural.rooms={n}"]))
     out = check_output_dir(Path(args.out) if args.out else Path("renders") / cfg.name / "accel",
                            "--out" if args.out else "name", ALLOWED)
     if sweep == "rooms":

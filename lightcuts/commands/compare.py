@@ -34,7 +34,7 @@ from lightcuts.api.comparing import (ALLOWED, DEFAULT_MITSUBA_SPP, DEFAULT_PIXEL
 from lightcuts.commands.common import add_set
 from lightcuts.distributed.options import add_cluster_options, cluster_spec
 from lightcuts.errors import LightcutsError
-from lightcuts.limits import MAX_PASSES
+from lightcuts.limits import MAX_PASSES, MAX_PIXELS, MAX_REFERENCE_SPP
 
 #: Passes of compare --mitsuba's converging render.
 DEFAULT_MITSUBA_PASSES = 8
@@ -75,7 +75,7 @@ def run(args) -> int:
 
 def run_compare(args) -> dict:
     """The ``lightcuts compare`` command; returns the report dict (also written to report.json)."""
-    from lightcuts.api.comparing import compare_run
+    from lightcuts.api.comparing import compare_run, converging_config
     from lightcuts.commands.plan import plan_run
     from lightcuts.config import load_config
     from lightcuts.io import check_output_dir
@@ -83,18 +83,24 @@ def run_compare(args) -> dict:
     from lightcuts.scene.build import image_size
 
     cfg = load_config(args.config, args.overrides)
-    if args.pixels < 0:
-        raise LightcutsError(f"--pixels {args.pixels}: must be >= 0")
+    if not 0 <= args.pixels <= MAX_PIXELS:
+        raise LightcutsError(f"--pixels {args.pixels}: must be from 0 to {MAX_PIXELS:,} (lightcuts.limits.MAX_PIXELS)")
     if args.mitsuba:
         from lightcuts.mitsuba import load_mitsuba
 
-        if args.mitsuba_spp < 1:
-            raise LightcutsError(f"--mitsuba-spp {args.mitsuba_spp}: must be at least 1")
+        if not 1 <= args.mitsuba_spp <= MAX_REFERENCE_SPP:
+            raise LightcutsError(f"--mitsuba-spp {args.mitsuba_spp}: must be from 1 to {MAX_REFERENCE_SPP:,} "
+                                 "(lightcuts.limits.MAX_REFERENCE_SPP)")
         if not 0 <= args.mitsuba_passes <= MAX_PASSES:
             raise LightcutsError(f"--mitsuba-passes {args.mitsuba_passes}: must be from 0 to {MAX_PASSES}")
         load_mitsuba()  # one line naming the install command if Mitsuba is missing
     rows = resolve_rows(cfg, args.builders, args.metrics)
     plans = [plan_run(cfg, render=True, tree=spec) for _, spec in rows]
+    if args.mitsuba and args.mitsuba_passes:  # the converging render's passes, checked as a render's
+        try:
+            plan_run(converging_config(cfg, plans[0].integrator, args.mitsuba_passes), render=True, tree=rows[0][1])
+        except LightcutsError as exc:
+            raise LightcutsError(f"--mitsuba-passes {args.mitsuba_passes}: the converging render's {exc}") from None
     labels = [label for label, _ in rows]
     if args.diff is None:
         diff = tuple(labels[:2]) if len(labels) >= 2 else None

@@ -97,14 +97,8 @@ def plan_run(cfg: RunConfig, *, render: bool = False, tree: TreeSpec | None = No
         usable = [e.name for e in RAY_CASTERS.entries() if e.trait("kernel_callable", False)]
         raise LightcutsError(f"render.ray_caster: {caster.name!r} cannot be called from the render kernels; "
                              f"use one of {', '.join(usable)}")
-    if render and cfg.render.crop is not None:
-        from types import SimpleNamespace
-
-        from lightcuts.render.camera import check_crop
-        from lightcuts.scene.build import image_size
-
-        width, height = image_size(cfg, scene_type)
-        check_crop(cfg.render.crop, SimpleNamespace(width=width, height=height))
+    if render:
+        check_work(cfg, scene_type)
     integrator = INTEGRATORS.resolve(cfg.render.integrator, "render.integrator")
     if cfg.camera.aperture > 0 and not integrator.trait("lens", False):
         lens = [e.name for e in INTEGRATORS.entries() if e.trait("lens", False)]
@@ -120,6 +114,30 @@ def plan_run(cfg: RunConfig, *, render: bool = False, tree: TreeSpec | None = No
             raise LightcutsError(f"render.{key}: integrator {integrator.name!r} does not support it; "
                                  f"use render.integrator: {' or '.join(converging)}")
     return Plan(cfg, tree, caster, scene_type, integrator)
+
+
+def check_work(cfg: RunConfig, scene_type: Resolved | None) -> int:
+    """The eye rays the config's render traces, pixels (of ``render.crop``, checked against the
+    image) x spp x passes (x continuation_rays with compensation); LightcutsError naming the
+    ``render`` keys if they are more than MAX_EYE_RAYS."""
+    from types import SimpleNamespace
+
+    from lightcuts.limits import MAX_EYE_RAYS
+    from lightcuts.render.camera import check_crop
+    from lightcuts.scene.build import image_size
+
+    width, height = image_size(cfg, scene_type)
+    x0, y0, x1, y1 = check_crop(cfg.render.crop, SimpleNamespace(width=width, height=height))
+    r = cfg.render
+    pixels = (x1 - x0) * (y1 - y0)
+    continuations = r.continuation_rays if r.compensation else 1
+    rays = pixels * r.spp * r.passes * continuations
+    if rays > MAX_EYE_RAYS:
+        per = f" x {continuations} continuation_rays" if continuations > 1 else ""
+        raise LightcutsError(f"render: {pixels:,} pixels x {r.spp} spp x {r.passes} passes{per} = {rays:,} eye rays, "
+                             f"more than {MAX_EYE_RAYS:,} (lightcuts.limits.MAX_EYE_RAYS); lower render.spp, "
+                             "render.passes or the resolution")
+    return rays
 
 
 def tree_meta(trees: dict) -> dict:

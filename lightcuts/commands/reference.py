@@ -79,7 +79,7 @@ def run_reference(args) -> dict:
     from lightcuts.api.convergence import PathTracer
     from lightcuts.commands.plan import plan_run
     from lightcuts.io import check_output_dir
-    from lightcuts.limits import MAX_PASSES
+    from lightcuts.limits import MAX_BOUNCES, MAX_PASSES, MAX_REFERENCE_SPP
 
     overrides = list(args.overrides) + (["lights.indirect.count=0"] if args.integrator == "direct" else [])
     if args.passes is not None and not (args.curve or args.split):
@@ -93,10 +93,12 @@ def run_reference(args) -> dict:
         overrides.append(f"render.passes={args.passes or 64}")
     cfg = load_config(args.config, overrides)
     plan = plan_run(cfg, render=True)
-    if args.spp < 1:
-        raise LightcutsError(f"--spp: {args.spp} must be a positive integer")
-    if not (args.max_depth == -1 or args.max_depth >= 1):
-        raise LightcutsError(f"--max-depth: {args.max_depth} must be -1 (unbounded) or >= 1")
+    if not 1 <= args.spp <= MAX_REFERENCE_SPP:
+        raise LightcutsError(f"--spp: {args.spp} must be an integer from 1 to {MAX_REFERENCE_SPP:,} "
+                             "(lightcuts.limits.MAX_REFERENCE_SPP)")
+    if not (args.max_depth == -1 or 1 <= args.max_depth <= MAX_BOUNCES):
+        raise LightcutsError(f"--max-depth: {args.max_depth} must be -1 (unbounded) or from 1 to {MAX_BOUNCES} "
+                             "(lightcuts.limits.MAX_BOUNCES)")
     if args.max_depth != -1 and args.renderer != "mitsuba":
         raise LightcutsError("--max-depth: goes with --renderer mitsuba (lightcuts' path tracer has every bounce)")
     tracer = PathTracer(args.renderer)

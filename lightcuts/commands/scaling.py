@@ -43,6 +43,7 @@ import numpy as np
 from lightcuts.commands.common import add_set, progress_bar
 from lightcuts.distributed.options import add_cluster_options, cluster_spec
 from lightcuts.errors import LightcutsError
+from lightcuts.limits import MAX_LIGHTS, MAX_POINTS, MAX_REPEATS, MAX_SPP
 
 
 BUILD_SIZES = "50000,100000,200000,400000,800000"
@@ -71,16 +72,24 @@ def add_parser(sub) -> None:
     p.set_defaults(func=run)
 
 
-def parse_sizes(text: str, option: str = "--sizes") -> list[int]:
+def parse_sizes(text: str, option: str = "--sizes", hi: int = MAX_LIGHTS, what: str = "lights",
+                limit: str = "MAX_LIGHTS") -> list[int]:
     """``"50000,100000"`` -> [50000, 100000] (sorted, each once); LightcutsError naming ``option``
-    for anything but positive integers."""
+    for anything but positive integers, for a value above ``hi`` (``what``, the name of the limit
+    ``limit`` in lightcuts.limits) and for more than MAX_POINTS values."""
     try:
         sizes = [int(s) for s in str(text).replace(" ", "").split(",") if s]
     except ValueError:
         raise LightcutsError(f"{option} {text!r}: expected comma-separated positive integers") from None
     if not sizes or min(sizes) < 1:
         raise LightcutsError(f"{option} {text!r}: expected comma-separated positive integers")
-    return sorted(set(sizes))
+    if max(sizes) > hi:
+        raise LightcutsError(f"{option}: {max(sizes):,} is more than {hi:,} {what} (lightcuts.limits.{limit})")
+    sizes = sorted(set(sizes))
+    if len(sizes) > MAX_POINTS:
+        raise LightcutsError(f"{option}: {len(sizes)} values, more than {MAX_POINTS} points "
+                             "(lightcuts.limits.MAX_POINTS)")
+    return sizes
 
 
 def resolve_specs(text: str | None, cfg) -> list:
@@ -130,7 +139,7 @@ def run_scaling(args) -> list[dict]:
             raise LightcutsError("--gather: the gather study runs on this machine only; leave out --workers and "
                                  "--scheduler")
 
-        return run_gather(args, parse_sizes(args.gather, "--gather"))
+        return run_gather(args, parse_sizes(args.gather, "--gather", MAX_SPP, "gather points per pixel", "MAX_SPP"))
     from lightcuts.commands.plan import plan_run
     from lightcuts.config import load_config
     from lightcuts.io import check_output_dir, output_set, save_csv
@@ -140,8 +149,8 @@ def run_scaling(args) -> list[dict]:
     render = bool(getattr(args, "render", False))
     sizes = parse_sizes(args.sizes if args.sizes is not None else (RENDER_SIZES if render else BUILD_SIZES))
     repeats = int(args.repeats) if args.repeats is not None else REPEATS
-    if repeats < 1:
-        raise LightcutsError(f"--repeats {repeats}: must be at least 1")
+    if not 1 <= repeats <= MAX_REPEATS:
+        raise LightcutsError(f"--repeats {repeats}: must be from 1 to {MAX_REPEATS} (lightcuts.limits.MAX_REPEATS)")
     overrides = list(args.overrides or [])
     base = overrides + ["lights.direct.count=0", "lights.sun=null", "lights.environment=null"]
     cfg = load_config(args.config, base + [f"lights.indirect.count={sizes[0]}"])

@@ -62,9 +62,12 @@ def run(args) -> int:
     seed = args.seed if args.seed is not None else (cfg.seed if cfg else 0)
 
     if args.lights:
+        from lightcuts.trees.checks import check_lights
+
         sets = {}
         for p in args.lights:
             ls = LightSet.load(p)
+            check_lights(ls, str(p))  # what the build checks, named by the file, before any tree is built
             sets[ls.type] = ls
         name = Path(args.lights[0]).stem
     else:

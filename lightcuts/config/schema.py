@@ -14,7 +14,8 @@ import yaml
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from lightcuts.errors import LightcutsError
-from lightcuts.limits import MAX_CONTINUATION_RAYS, MAX_COORD, MAX_CUT, MAX_EXPOSURE, MAX_PASSES, MAX_PIXELS, MAX_SEED
+from lightcuts.limits import (MAX_BOUNCES, MAX_CONTINUATION_RAYS, MAX_COORD, MAX_CUT, MAX_EMITTER_TRIANGLES,
+                              MAX_EXPOSURE, MAX_LIGHTS, MAX_PASSES, MAX_PIXELS, MAX_SEED, MAX_SPP)
 
 #: Run defaults, here alone: commands and stage APIs read them from this module.
 DEFAULT_BUILDER = "agglomerative"
@@ -29,6 +30,8 @@ DEFAULT_INTEGRATOR = "lightcuts"
 Num = Annotated[float, Field(ge=-MAX_COORD, le=MAX_COORD)]
 Vec3 = Annotated[list[Num], Field(min_length=3, max_length=3)]
 PositiveInt = Annotated[int, Field(ge=1)]
+#: A number of lights (lightcuts.limits.MAX_LIGHTS: memory).
+LightCount = Annotated[int, Field(ge=0, le=MAX_LIGHTS)]
 #: (width, height) pixels, at most MAX_PIXELS in all: checked before any buffer is allocated.
 Resolution = Annotated[list[PositiveInt], Field(min_length=2, max_length=2)]
 
@@ -148,6 +151,12 @@ class AreaLight(Strict):
             raise ValueError("radiance: must not be all zero")
         return self
 
+    def triangles(self) -> int:
+        """The triangles this entry adds: per emitter 2 (quad) or ``segments`` (disc), times the
+        grid's cells."""
+        cells = 1 if self.grid is None else self.grid.count[0] * self.grid.count[1] * self.grid.count[2]
+        return cells * (2 if self.shape == "quad" else self.segments)
+
 
 class SceneConfig(Strict):
     """``builtin: cornell`` or ``procedural: {type: kitchen, triangles: ...}``, and/or a list of mesh
@@ -162,6 +171,15 @@ class SceneConfig(Strict):
     materials: dict[str, Material] = {}
     # Area lights placed by the config (quads, discs, grids of them), added as emitting triangles.
     emitters: list[AreaLight] = []
+
+    @field_validator("emitters")
+    @classmethod
+    def _emitter_triangles(cls, v):
+        n = sum(e.triangles() for e in v)
+        if n > MAX_EMITTER_TRIANGLES:
+            raise ValueError(f"{n:,} triangles in all (grid cells x triangles per emitter), more than "
+                             f"{MAX_EMITTER_TRIANGLES:,} (lightcuts.limits.MAX_EMITTER_TRIANGLES)")
+        return v
 
 
 class CameraConfig(Strict):
@@ -184,14 +202,14 @@ class CameraConfig(Strict):
 class DirectLights(Strict):
     """Emissive triangles sampled into ``count`` oriented lights (area-weighted, stratified)."""
 
-    count: Annotated[int, Field(ge=0)] = 1024
+    count: LightCount = 1024
 
 
 class IndirectLights(Strict):
     """Particle tracing from the emitters: about ``count`` VPLs stored at diffuse bounces."""
 
-    count: Annotated[int, Field(ge=0)] = 0
-    max_bounces: PositiveInt = 16
+    count: LightCount = 0
+    max_bounces: Annotated[int, Field(ge=1, le=MAX_BOUNCES)] = 16
     # Russian roulette starts after this many bounces, survival probability = min(1, max albedo).
     rr_start: Annotated[int, Field(ge=0)] = 1
 
@@ -234,7 +252,7 @@ class Environment(Strict):
 
     file: str | None = None
     procedural: Procedural | None = None
-    count: PositiveInt = 1024
+    count: Annotated[int, Field(ge=1, le=MAX_LIGHTS)] = 1024
     scale: Annotated[float, Field(gt=0, le=MAX_COORD)] = 1.0
     # Rotation of the map about +y, degrees.
     rotate: Num = 0.0
@@ -245,6 +263,16 @@ class LightsConfig(Strict):
     indirect: IndirectLights = IndirectLights()
     sun: Sun | None = None
     environment: Environment | None = None
+
+    @model_validator(mode="after")
+    def _total(self):
+        env = self.environment.count if self.environment is not None else 0
+        n = self.direct.count + self.indirect.count + env
+        if n > MAX_LIGHTS:
+            raise ValueError(f"direct.count {self.direct.count:,} + indirect.count {self.indirect.count:,} + "
+                             f"environment.count {env:,} = {n:,} lights, more than {MAX_LIGHTS:,} "
+                             "(lightcuts.limits.MAX_LIGHTS)")
+        return self
 
 
 class TreeConfig(Strict):
@@ -265,7 +293,8 @@ class Clamp(Strict):
 
 
 class RenderConfig(Strict):
-    spp: PositiveInt = 1
+    # Eye rays per pixel (multidimensional: gather points), at most MAX_SPP (per-thread scratch, time).
+    spp: Annotated[int, Field(ge=1, le=MAX_SPP)] = 1
     # Relative error bound: 1 already accepts any cluster whose bound is below the total estimate.
     eps: Annotated[float, Field(gt=0, le=1)] = DEFAULT_EPS
     max_cut: Annotated[int, Field(ge=1, le=MAX_CUT)] = DEFAULT_MAX_CUT
@@ -289,6 +318,15 @@ class RenderConfig(Strict):
     representatives: Literal["fixed", "stochastic"] = "fixed"
     # Passes averaged, each with its own lights, trees and eye-ray samples (seeds from ``seed``).
     passes: Annotated[int, Field(ge=1, le=MAX_PASSES)] = 1
+
+    @field_validator("continuation_rays")
+    @classmethod
+    def _continuations_per_pixel(cls, v, info):
+        spp = info.data.get("spp")
+        if spp is not None and v * spp > MAX_SPP:
+            raise ValueError(f"{v} x render.spp {spp} = {v * spp:,} continuations per pixel, more than "
+                             f"{MAX_SPP:,} (lightcuts.limits.MAX_SPP)")
+        return v
 
 
 class RunConfig(Strict):
@@ -319,12 +357,16 @@ class RunConfig(Strict):
         return q if q.is_absolute() else (Path(self.base_dir) / q)
 
 
-def _format_error(source: str, exc: ValidationError) -> str:
+def _format_error(source: str, exc: ValidationError, keys=()) -> str:
+    """One line for the first error; an unknown key that an override made (``keys``: the dotted keys
+    set, which make their sections on the way) is named in full, as the override gave it."""
     e = exc.errors()[0]
-    loc = ".".join(str(p) for p in e["loc"] if not (isinstance(p, str) and p.startswith("function-")))
+    parts = [str(p) for p in e["loc"] if not (isinstance(p, str) and p.startswith("function-"))]
+    loc = ".".join(parts)
     msg = e["msg"]
     if e["type"] == "extra_forbidden":
         msg = "unknown key"
+        loc = next((k.strip() for k in keys if k.strip().split(".")[:len(parts)] == parts), loc)
     elif e["type"] == "value_error":
         msg = msg.removeprefix("Value error, ")
     more = f" (and {len(exc.errors()) - 1} more)" if len(exc.errors()) > 1 else ""
@@ -380,14 +422,15 @@ def check_files(cfg: RunConfig, source: str) -> None:
             raise LightcutsError(f"{source}: {key}: no such file {str(path)!r}")
 
 
-def config_from_dict(data: dict, source: str = "<config>", base_dir: str | Path = ".") -> RunConfig:
-    """Validate a config dict; LightcutsError with one line on any problem."""
+def config_from_dict(data: dict, source: str = "<config>", base_dir: str | Path = ".", keys=()) -> RunConfig:
+    """Validate a config dict; LightcutsError with one line on any problem. ``keys``: the dotted keys
+    that overrides set, named in full when unknown."""
     if not isinstance(data, dict):
         raise LightcutsError(f"{source}: expected a mapping at the top level")
     try:
         cfg = RunConfig.model_validate({**data, "base_dir": str(base_dir)})
     except ValidationError as exc:
-        raise LightcutsError(_format_error(source, exc)) from None
+        raise LightcutsError(_format_error(source, exc, keys)) from None
     sc = cfg.scene
     if sc.builtin is None and sc.procedural is None and not sc.meshes and not sc.emitters:
         raise LightcutsError(f"{source}: scene: needs builtin, procedural, meshes or emitters")
@@ -403,7 +446,13 @@ def config_from_dict(data: dict, source: str = "<config>", base_dir: str | Path 
 def load_config(path: str | Path, overrides: list[str] = (), values: dict | None = None) -> RunConfig:
     """Read, override (``key.sub=value``, value parsed as YAML; then ``values``, dotted key -> Python
     value, as the Python API gives them) and validate a run config."""
-    path = Path(path)
+    from lightcuts.io import as_path
+
+    path = as_path(path, "config")
+    if not isinstance(overrides, (list, tuple)) or not all(isinstance(a, str) for a in overrides):
+        raise LightcutsError(f"overrides {overrides!r}: expected a list of 'key=value' texts")
+    if values is not None and not isinstance(values, dict):
+        raise LightcutsError(f"values {values!r}: expected a dict of dotted keys and values")
     try:
         raw = path.read_bytes()
     except OSError as exc:
@@ -418,9 +467,9 @@ def load_config(path: str | Path, overrides: list[str] = (), values: dict | None
         raise LightcutsError(f"{path}: invalid YAML (nested too deeply)") from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
-        where = f" line {mark.line + 1}" if mark is not None else ""
+        where = f" line {mark.line + 1}:" if mark is not None else ""
         what = " ".join(str(getattr(exc, "problem", None) or exc).split())
-        raise LightcutsError(f"{path}:{where}: invalid YAML ({what})") from None
+        raise LightcutsError(f"{path}:{where} invalid YAML ({what})") from None
     if data is None:
         data = {}
     if not isinstance(data, dict):
@@ -428,7 +477,8 @@ def load_config(path: str | Path, overrides: list[str] = (), values: dict | None
     for a in overrides:
         _apply_override(data, a, str(path))
     for key, value in (values or {}).items():
-        if not key.strip() or any(not p for p in key.strip().split(".")):
+        if not isinstance(key, str) or not key.strip() or any(not p for p in key.strip().split(".")):
             raise LightcutsError(f"{key!r}: expected a dotted key, e.g. render.eps")
         set_key(data, key, value)
-    return config_from_dict(data, str(path), path.parent.resolve())
+    keys = [a.partition("=")[0] for a in overrides] + list(values or {})
+    return config_from_dict(data, str(path), path.parent.resolve(), keys)

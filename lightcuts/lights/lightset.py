@@ -24,7 +24,7 @@ import numpy as np
 
 from lightcuts.errors import LightcutsError
 from lightcuts.io import read_npz, save_npz
-from lightcuts.limits import MAX_COORD, MAX_INTENSITY
+from lightcuts.limits import MAX_COORD, MAX_INTENSITY, MAX_LIGHTS
 
 LIGHT_TYPES = ("omni", "oriented", "directional")
 # Metadata that builders compute with (lightcuts.trees.build.default_c), checked on reading.
@@ -141,11 +141,15 @@ class LightSet:
             raise LightcutsError(f"{path}: position, normal and intensity differ in length")
         if n == 0:
             raise LightcutsError(f"{path}: holds no lights")
+        if n > MAX_LIGHTS:
+            raise LightcutsError(f"{path}: holds {n:,} lights, more than {MAX_LIGHTS:,} (lightcuts.limits.MAX_LIGHTS)")
         meta = {}
         for k, a in z.items():
             if not k.startswith("meta_"):
                 continue
             if k[5:] in _NUMERIC_META and (a.ndim != 0 or a.dtype.kind not in "biuf" or not np.isfinite(a)):
                 raise LightcutsError(f"{path}: {k} must be a finite number, got {a.dtype} {a.shape}")
+            if k[5:] in _NUMERIC_META and not 0 <= a <= 16 * MAX_COORD:  # the bound of a scene's diagonal
+                raise LightcutsError(f"{path}: {k} = {a.item():g} is not in [0, {16 * MAX_COORD:g}]")
             meta[k[5:]] = a.item() if a.ndim == 0 else a
         return cls(arrays["position"], arrays["normal"], arrays["intensity"], typ, indirect, meta)

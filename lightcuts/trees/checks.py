@@ -19,32 +19,33 @@ from lightcuts.limits import MAX_COORD, MAX_INTENSITY
 _UNIT_TOL = 1e-6
 
 
-def check_lights(lights: LightSet) -> tuple[np.ndarray, np.ndarray]:
-    """LightcutsError naming the array at fault, before anything reaches a kernel that computes with
-    it; returns the (N, 3) normals the tree uses (oriented lights: ``lights.normal`` rescaled to unit
-    length, see build_tree; other types: ``lights.normal``) and the (N,) luminances
-    (``lights.luminance``, bit for bit, from the same read of the arrays)."""
+def check_lights(lights: LightSet, source: str = "lights") -> tuple[np.ndarray, np.ndarray]:
+    """LightcutsError naming ``source`` (e.g. the light file) and the array at fault, before anything
+    reaches a kernel that computes with it; returns the (N, 3) normals the tree uses (oriented
+    lights: ``lights.normal`` rescaled to unit length, see build_tree; other types:
+    ``lights.normal``) and the (N,) luminances (``lights.luminance``, bit for bit, from the same read
+    of the arrays)."""
     if not isinstance(lights, LightSet):
         raise TypeError(f"build_tree expects a LightSet, got {type(lights).__name__}")
     if len(lights) == 0:
-        raise LightcutsError("lights: the light set is empty")
+        raise LightcutsError(f"{source}: the light set is empty")
     unit_key = {"oriented": "normal", "directional": "position"}.get(lights.type)
     unit = {None: 0, "normal": 1, "position": 2}[unit_key]
     nonfinite, negative, worst, err, unit_normal, luminance = _scan_lights(
         lights.position, lights.normal, lights.intensity, np.asarray(LUMINANCE, np.float64), unit)
     for bit, key in enumerate(("position", "normal", "intensity")):
         if nonfinite >> bit & 1:
-            raise LightcutsError(f"lights: {key} has non-finite values")
+            raise LightcutsError(f"{source}: {key} has non-finite values")
     if negative:
-        raise LightcutsError("lights: intensity has negative values")
+        raise LightcutsError(f"{source}: intensity has negative values")
     # Within these bounds no metric overflows (lightcuts.limits), so every builder finds a pair.
     for key, arr, limit in (("position", lights.position, MAX_COORD), ("intensity", lights.intensity, MAX_INTENSITY)):
         if len(arr) and float(np.abs(arr).max()) > limit:
-            raise LightcutsError(f"lights: {key} has values beyond {limit:g} in magnitude "
+            raise LightcutsError(f"{source}: {key} has values beyond {limit:g} in magnitude "
                                  "(the clustering metric would overflow)")
     if unit_key is not None and err > _UNIT_TOL:
         what = "normals" if unit_key == "normal" else "directions (position)"
-        raise LightcutsError(f"lights: {lights.type} light {unit_key} {worst} is not unit length "
+        raise LightcutsError(f"{source}: {lights.type} light {unit_key} {worst} is not unit length "
                              f"(|v| - 1 = {err:.3g}); {what} must be unit vectors")
     return (unit_normal if unit == 1 else lights.normal), luminance
 

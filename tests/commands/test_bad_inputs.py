@@ -20,6 +20,7 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from lightcuts import limits
 from lightcuts.errors import LightcutsError
 from scene_files import (broken_png, checkerboard, png_bytes, png_claiming, quad_gltf, quad_obj, textured_material,
                          write_gltf)
@@ -214,6 +215,10 @@ CASES = [
     ("lights-type-bytes", None, None, dict(type=np.array(b"omni"))),
     ("lights-no-type", None, None, dict(type=None)),
     ("lights-indirect-float", None, None, dict(indirect=np.ones(3))),
+    ("lights-normal-not-unit", None, None, dict(normal=np.full((8, 3), 2.0))),
+    ("lights-direction-not-unit", None, None, dict(type=np.array("directional"), normal=np.zeros((8, 3)),
+                                                   position=np.full((8, 3), 3.0))),
+    ("lights-meta-diagonal-negative", None, None, dict(meta_diagonal=np.array(-1.0))),
     # a mesh the README promises to refuse
     ("mesh-nan-vertices", ["render", "bad.yaml"], _config(scene={"meshes": [{"file": "nan.obj"}]}), None),
     # textures, texture coordinates, glTF files and materials, emission (files of _setup_scene_files)
@@ -227,7 +232,35 @@ CASES = [
     ("scene-emitters-power-together", ["render", "bad.yaml"], _config(scene={"emitters": [
         {"position": [0, 0, 0], "normal": [0, -1, 0], "size": [1e30, 6e29], "radiance": [1e30, 1e30, 1e30]},
         {"position": [0, 1, 0], "normal": [0, -1, 0], "size": [1e30, 6e29], "radiance": [1e30, 1e30, 1e30]}]}), None),
+    # numbers that size work or memory, one past their limit (lightcuts.limits)
+    ("spp-1e9", ["render", "run.yaml", "--set", "render.spp=1000000000"], None, None),
+    ("spp-2**63-1", ["render", "run.yaml", "--set", f"render.spp={2**63 - 1}"], None, None),
+    ("gather-points-1e9", ["render", "run.yaml", "--set", "render.integrator=multidimensional",
+                           "--set", "render.spp=1000000000"], None, None),
+    ("eye-rays", ["render", "run.yaml", "--set", "camera.resolution=[8192,4096]", "--set", "render.spp=2049"],
+     None, None),
+    ("indirect-count-1e12", ["render", "run.yaml", "--set", "lights.indirect.count=1000000000000"], None, None),
+    ("max-bounces-2**40", ["render", "run.yaml", "--set", f"lights.indirect.max_bounces={2**40}"], None, None),
+    ("emitter-grid-1024**3", ["render", "bad.yaml"], _config(scene__emitters=[
+        {"grid": {"lo": [0, 0, 0], "hi": [1, 1, 1], "count": [1024, 1024, 1024]}, "normal": [0, -1, 0],
+         "size": [0.1, 0.1], "radiance": [1, 1, 1]}]), None),
+    ("compare-pixels-huge", ["compare", "run.yaml", "--pixels", str(2**40)], None, None),
+    ("compare-mitsuba-passes-eye-rays", ["compare", "run.yaml", "--mitsuba", "--mitsuba-passes", "4096", "--set",
+                                         "camera.resolution=[4096,4096]", "--set", "render.spp=2"], None, None),
+    ("scaling-sizes-1e12", ["scaling", "run.yaml", "--sizes", "1000000000000"], None, None),
+    ("scaling-gather-1e9", ["scaling", "run.yaml", "--gather", "1000000000"], None, None),
+    ("scaling-repeats-1e9", ["scaling", "run.yaml", "--sizes", "100", "--repeats", "1000000000"], None, None),
+    ("accel-repeats-1e9", ["accel", "run.yaml", "--repeats", "1000000000"], None, None),
+    ("reference-spp-2**40", ["reference", "run.yaml", "--renderer", "lightcuts", "--spp", str(2**40)], None, None),
+    ("reference-max-depth-2**40", ["reference", "run.yaml", "--max-depth", str(2**40)], None, None),
 ]
+#: Every command, with an --out where nothing can be written: /proc and /sys refuse new entries even
+#: to root, who passes every permission check.
+UNWRITABLE = ["/proc/lightcuts-out", "/sys/lightcuts-out/deeper"]
+OUT_COMMANDS = {"render": [], "lights": [], "tree": [], "compare": [], "scaling": ["--sizes", "100"],
+                "scaling-gather": ["--gather", "1,4"], "accel": [], "reference": ["--renderer", "lightcuts"]}
+CASES += [(f"unwritable-{where.split('/')[1]}-{name}", [name.split("-")[0], "run.yaml", *extra, "--out", where],
+           None, None) for name, extra in OUT_COMMANDS.items() for where in UNWRITABLE]
 
 
 def _snapshot(folder: Path) -> dict:
@@ -236,26 +269,16 @@ def _snapshot(folder: Path) -> dict:
 
 
 @pytest.fixture
-def workdir(tmp_path, monkeypatch):
-    """A folder with a config, an older run's outputs in renders/old and old/, and a recorder of
-    the stage functions called."""
-    import lightcuts.lights.generate
-    import lightcuts.scene.build
-    import lightcuts.trees.build
-
+def workdir(tmp_path, monkeypatch, stage_calls):
+    """A folder with a config, an older run's outputs in renders/old and old/, and the recorder of
+    the stage functions called (:func:`conftest.stage_calls`)."""
     _setup_files(tmp_path)
     for folder in (tmp_path / "renders" / "old", tmp_path / "old"):
         folder.mkdir(parents=True)
         for name, data in OLD_SET.items():
             (folder / name).write_bytes(data)
-    calls = []
-    for module, name in ((lightcuts.scene.build, "scene_from_config"),
-                         (lightcuts.lights.generate, "lights_from_config"),
-                         (lightcuts.trees.build, "build_tree")):
-        fn = getattr(module, name)
-        monkeypatch.setattr(module, name, lambda *a, _fn=fn, _name=name, **k: (calls.append(_name), _fn(*a, **k))[1])
     monkeypatch.chdir(tmp_path)
-    return tmp_path, calls
+    return tmp_path, stage_calls
 
 
 #: Inputs found only by reading a file the scene needs: the read is the check.
@@ -280,6 +303,13 @@ def test_bad_input_one_line_exit_2_before_work(workdir, capsys, case, argv, conf
         else:
             _npz(folder, "l.npz", **lights)
         argv = ["tree", "--lights", "l.npz", "--out", "t.npz"]
+        # The light checks' kernel loaded (compiled on an empty cache, with numba's one-time notice on
+        # stderr) before the case, whose output is then its own.
+        from lightcuts.lights import LightSet
+        from lightcuts.trees.checks import check_lights
+
+        check_lights(LightSet(np.zeros((1, 3)), [[0.0, 0.0, 1.0]], np.ones((1, 3)), "oriented"))
+        capsys.readouterr()
     before = _snapshot(folder)
     rc = main(argv + (["--no-progress"] if argv[0] == "render" else []))
     out, err = capsys.readouterr()
@@ -288,6 +318,10 @@ def test_bad_input_one_line_exit_2_before_work(workdir, capsys, case, argv, conf
     assert len(lines) == 1 and lines[0].startswith("error: ") and "Traceback" not in err, err
     assert calls == (["scene_from_config"] if case in SCENE_READ else []), (calls, err)
     assert _snapshot(folder) == before
+    if lights is not None:  # a light file's problem is named by the file
+        assert lines[0].startswith("error: l.npz: "), err
+    if case.startswith("unwritable-"):
+        assert lines[0].startswith(f"error: --out '{argv[-1]}': cannot write in '/"), err
     assert not Path("/tmp/lightcuts-absolute").exists()
 
 
@@ -303,6 +337,103 @@ def test_unwritable_out_refused(workdir, capsys):
     finally:
         (folder / "locked").chmod(0o700)
     assert calls == [] and len(capsys.readouterr().err.strip().splitlines()) == 1
+
+
+def test_probe_proves_writing_and_leaves_nothing(tmp_path, monkeypatch):
+    """Each output check makes an entry where the output goes (or where its folder would be made)
+    and removes it; a folder that refuses new entries (as /proc, or a read-only mount, does even to
+    root) is refused, permissions notwithstanding."""
+    import errno
+
+    from lightcuts import io
+
+    (tmp_path / "old").mkdir()
+    (tmp_path / "old" / "image.png").write_bytes(b"old")
+    made = []
+    mkdir, open_ = os.mkdir, os.open
+    monkeypatch.setattr(os, "mkdir", lambda p, *a: (made.append(("dir", Path(p))), mkdir(p, *a))[1])
+    monkeypatch.setattr(os, "open", lambda p, f, *a: (made.append(("file", Path(p))), open_(p, f, *a))[1])
+    io.check_output_dir(tmp_path / "old", "--out")
+    io.check_output_dir(tmp_path / "new" / "deeper", "--out")
+    io.check_output_file(tmp_path / "l.npz", "--out")
+    io.check_output_file(tmp_path / "sub" / "l.npz", "--out")
+    io.check_store_dir(tmp_path / "old", "store")
+    io.check_store_dir(tmp_path / "rows", "store")
+    assert [(kind, p.parent) for kind, p in made] == [
+        ("dir", tmp_path), ("dir", tmp_path), ("file", tmp_path), ("dir", tmp_path), ("file", tmp_path / "old"),
+        ("dir", tmp_path)]
+    assert sorted(p.name for p in tmp_path.rglob("*")) == ["image.png", "old"]
+
+    def refuse(p, *a):
+        raise OSError(errno.EROFS, os.strerror(errno.EROFS), str(p))
+
+    monkeypatch.setattr(os, "mkdir", refuse)
+    monkeypatch.setattr(os, "open", refuse)
+    assert os.access(tmp_path, os.W_OK)  # the permissions say yes
+    for check, path in ((io.check_output_dir, tmp_path / "out"), (io.check_output_file, tmp_path / "l.npz"),
+                        (io.check_store_dir, tmp_path / "old")):
+        with pytest.raises(LightcutsError, match=r"^--out .*: cannot write in .*Read-only file system"):
+            check(path, "--out")
+    assert sorted(p.name for p in tmp_path.rglob("*")) == ["image.png", "old"]
+
+
+def test_special_file_out_refused(workdir, capsys):
+    """An --out naming a FIFO (or a device, e.g. /dev/null) is not replaced by the atomic write."""
+    from lightcuts.cli import main
+
+    folder, calls = workdir
+    os.mkfifo(folder / "pipe")
+    before = _snapshot(folder)
+    assert main(["lights", "run.yaml", "--out", "pipe"]) == 2
+    assert capsys.readouterr().err.strip() == "error: --out 'pipe': exists and is not a regular file"
+    assert calls == [] and _snapshot(folder) == before
+
+
+#: (command and options before the bounded one, the option, its limit): the limit passes the option's
+#: check (the run then stops at the later --out check), one more is refused naming option and limit.
+OPTION_BOUNDS = [
+    (["compare", "run.yaml"], "--pixels", limits.MAX_PIXELS),
+    (["scaling", "run.yaml", "--sizes", "100"], "--repeats", limits.MAX_REPEATS),
+    (["scaling", "run.yaml"], "--sizes", limits.MAX_LIGHTS),
+    (["scaling", "run.yaml"], "--gather", limits.MAX_SPP),
+    (["accel", "run.yaml"], "--repeats", limits.MAX_REPEATS),
+    (["reference", "run.yaml", "--renderer", "lightcuts"], "--spp", limits.MAX_REFERENCE_SPP),
+    (["reference", "run.yaml", "--renderer", "lightcuts", "--split"], "--passes", limits.MAX_PASSES),
+    (["reference", "run.yaml"], "--max-depth", limits.MAX_BOUNCES),
+    (["compare", "run.yaml", "--mitsuba"], "--mitsuba-spp", limits.MAX_REFERENCE_SPP),
+    (["compare", "run.yaml", "--mitsuba"], "--mitsuba-passes", limits.MAX_PASSES),
+]
+
+
+@pytest.mark.parametrize("argv, option, limit", OPTION_BOUNDS, ids=[f"{a[0]}{o}" for a, o, _ in OPTION_BOUNDS])
+def test_option_bounds_at_the_limit(workdir, capsys, argv, option, limit):
+    from lightcuts.cli import main
+
+    if option == "--max-depth" or "--mitsuba" in argv:
+        pytest.importorskip("mitsuba")
+    folder, calls = workdir
+    out = ["--out", "/proc/lightcuts-out"]
+    assert main(argv + [option, str(limit)] + out) == 2
+    assert capsys.readouterr().err.strip().startswith("error: --out '/proc/lightcuts-out': cannot write in")
+    assert main(argv + [option, str(limit + 1)] + out) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    rest = lines[0].replace(f"{limit + 1:,}", "").replace(str(limit + 1), "")  # the limit, not the value given
+    assert len(lines) == 1 and option in lines[0] and (f"{limit:,}" in rest or str(limit) in rest), lines
+    assert calls == []
+
+
+@pytest.mark.parametrize("option", ["--sizes", "--gather"])
+def test_study_points_at_the_limit(workdir, capsys, option):
+    from lightcuts.cli import main
+
+    folder, calls = workdir
+    points = ",".join(str(i) for i in range(1, limits.MAX_POINTS + 2))
+    assert main(["scaling", "run.yaml", option, points.rpartition(",")[0], "--out", "/proc/lightcuts-out"]) == 2
+    assert "error: --out '/proc/lightcuts-out'" in capsys.readouterr().err
+    assert main(["scaling", "run.yaml", option, points, "--out", "/proc/lightcuts-out"]) == 2
+    assert capsys.readouterr().err.strip() == (f"error: {option}: {limits.MAX_POINTS + 1} values, more than "
+                                               f"{limits.MAX_POINTS} points (lightcuts.limits.MAX_POINTS)")
+    assert calls == []
 
 
 def test_latin1_obj_loads(tmp_path):

@@ -121,7 +121,7 @@ def test_pixel_sample_is_seeded_distinct_and_inside_the_window():
     (["--builders", "divisive-3d,divisive-6d", "--diff", "divisive-3d,saoh"], "--diff 'divisive-3d,saoh'"),
     (["--builders", "divisive-3d", "--metrics", "walter2008"], "--metrics: none of the builders"),
     (["--metrics", "nope"], "--metrics: unknown metric 'nope'"),
-    (["--pixels", "-1"], "--pixels -1: must be >= 0"),
+    (["--pixels", "-1"], "--pixels -1: must be from 0 to 33,554,432"),
 ])
 def test_bad_options_one_line_nothing_built(tmp_path, extra, message):
     rc, calls, err = cli_recording_work(["compare", str(ROOT / "configs/cornell.yaml"), "--out",

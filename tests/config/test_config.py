@@ -4,6 +4,7 @@ from pathlib import Path
 
 import pytest
 
+from lightcuts import limits
 from lightcuts.config import load_config
 from lightcuts.errors import LightcutsError
 
@@ -103,3 +104,145 @@ def test_paths_resolve_against_config_folder(tmp_path):
     p = write(tmp_path / "sub", "scene: {meshes: [{file: m.obj}]}\n")
     cfg = load_config(p)
     assert cfg.resolve(cfg.scene.meshes[0].file) == (tmp_path / "sub" / "m.obj").resolve()
+
+
+# Limits on what sizes a run's work and memory (lightcuts.limits): the limit itself loads, one past it
+# is refused with one line naming the key and the limit.
+
+_NO_DIRECT = {"lights.direct.count": 0}
+_ENV = {"lights.environment": {"procedural": {}}, "lights.direct.count": 0}
+BOUNDS = [  # (key, limit, other values that keep the rest within its limits)
+    ("render.spp", limits.MAX_SPP, {}),
+    ("render.passes", limits.MAX_PASSES, {}),
+    ("render.continuation_rays", limits.MAX_CONTINUATION_RAYS, {}),
+    ("render.max_cut", limits.MAX_CUT, {}),
+    ("lights.direct.count", limits.MAX_LIGHTS, {}),
+    ("lights.indirect.count", limits.MAX_LIGHTS, _NO_DIRECT),
+    ("lights.environment.count", limits.MAX_LIGHTS, _ENV),
+    ("lights.indirect.max_bounces", limits.MAX_BOUNCES, {}),
+]
+
+
+@pytest.mark.parametrize("key, limit, others", BOUNDS, ids=[b[0] for b in BOUNDS])
+def test_work_and_memory_bounds_at_the_limit(tmp_path, key, limit, others):
+    p = write(tmp_path, "scene: {builtin: cornell}\n")
+    cfg = load_config(p, values={**others, key: limit})
+    section, _, field = key.rpartition(".")
+    node = cfg
+    for part in section.split("."):
+        node = getattr(node, part)
+    assert getattr(node, field) == limit
+    with pytest.raises(LightcutsError) as e:
+        load_config(p, values={**others, key: limit + 1})
+    msg = str(e.value)
+    assert "\n" not in msg and f": {key}: " in msg and (str(limit) in msg or f"{limit:,}" in msg), msg
+
+
+@pytest.mark.parametrize("values, key, limit", [
+    # spp x continuation_rays: 256 x 64 is the limit
+    ({"render.spp": 256, "render.continuation_rays": 64}, "render.continuation_rays", limits.MAX_SPP),
+    # every light count together
+    ({"lights.direct.count": limits.MAX_LIGHTS // 2, "lights.indirect.count": limits.MAX_LIGHTS // 2}, "lights",
+     limits.MAX_LIGHTS),
+    ({"lights.direct.count": limits.MAX_LIGHTS // 2, "lights.indirect.count": limits.MAX_LIGHTS // 4,
+      "lights.environment": {"procedural": {}, "count": limits.MAX_LIGHTS // 4}}, "lights", limits.MAX_LIGHTS),
+])
+def test_products_and_sums_at_the_limit(tmp_path, values, key, limit):
+    p = write(tmp_path, "scene: {builtin: cornell}\n")
+    load_config(p, values=values)
+    over = dict(values)
+    first = next(iter(values))
+    over[first] = values[first] + 1
+    with pytest.raises(LightcutsError) as e:
+        load_config(p, values=over)
+    assert f": {key}: " in str(e.value) and f"{limit:,}" in str(e.value), str(e.value)
+
+
+def test_emitter_triangles_at_the_limit(tmp_path):
+    """A grid of quads making MAX_EMITTER_TRIANGLES triangles loads; one more quad is refused."""
+    grid = {"grid": {"lo": [0, 0, 0], "hi": [1, 0, 1], "count": [1000, 1, 1000]}, "normal": [0, -1, 0],
+            "size": [0.001, 0.001], "radiance": [1, 1, 1]}
+    quad = {"position": [0, 1, 0], "normal": [0, -1, 0], "size": [1, 1], "radiance": [1, 1, 1]}
+    p = write(tmp_path, "scene: {builtin: cornell}\n")
+    assert limits.MAX_EMITTER_TRIANGLES == 2 * 1000 * 1000 * 2
+    cfg = load_config(p, values={"scene.emitters": [grid, grid]})
+    assert sum(e.triangles() for e in cfg.scene.emitters) == limits.MAX_EMITTER_TRIANGLES
+    with pytest.raises(LightcutsError, match=r": scene.emitters: 4,000,002 triangles in all .* more than 4,000,000"):
+        load_config(p, values={"scene.emitters": [grid, grid, quad]})
+    disc = {**quad, "shape": "disc", "size": None, "radius": 1.0, "segments": 7}
+    assert load_config(p, values={"scene.emitters": [disc]}).scene.emitters[0].triangles() == 7
+
+
+@pytest.mark.parametrize("values, ok", [
+    ({"camera.resolution": [8192, 4096], "render.spp": 2048}, True),  # 2**25 pixels x 2**11 = 2**36
+    ({"camera.resolution": [8192, 4096], "render.spp": 2049}, False),
+    ({"camera.resolution": [8192, 4096], "render.spp": 1024, "render.passes": 2}, True),
+    ({"camera.resolution": [8192, 4096], "render.spp": 1025, "render.passes": 2}, False),
+    ({"camera.resolution": [8192, 4096], "render.spp": 1024, "render.compensation": True,
+      "render.continuation_rays": 2}, True),
+    ({"camera.resolution": [8192, 4096], "render.spp": 1024, "render.compensation": True,
+      "render.continuation_rays": 3}, False),
+    ({"camera.resolution": [8192, 4096], "render.spp": 4096, "render.crop": [0, 0, 8192, 2048]}, True),
+    ({"camera.resolution": [8192, 4096], "render.spp": 4097, "render.crop": [0, 0, 8192, 2048]}, False),
+])
+def test_eye_rays_of_a_render_at_the_limit(tmp_path, values, ok):
+    """pixels (of the crop) x spp x passes (x continuation_rays with compensation) <= MAX_EYE_RAYS,
+    checked by the plan of a render."""
+    from lightcuts.commands.plan import check_work, plan_run
+
+    cfg = load_config(write(tmp_path, "scene: {builtin: cornell}\n"), values=values)
+    plan_run(cfg)  # a run that does not render is not bounded by its eye rays
+    if ok:
+        assert check_work(cfg, None) <= limits.MAX_EYE_RAYS
+        plan_run(cfg, render=True)
+    else:
+        with pytest.raises(LightcutsError, match=r"^render: .* eye rays, more than 68,719,476,736 "):
+            plan_run(cfg, render=True)
+
+
+def test_yaml_error_without_a_line_is_one_clean_line(tmp_path):
+    p = tmp_path / "bin.yaml"
+    p.write_bytes(b"\x00\x01 binary")
+    with pytest.raises(LightcutsError) as e:
+        load_config(p)
+    assert str(e.value).startswith(f"{p}: invalid YAML (") and "::" not in str(e.value)
+    with pytest.raises(LightcutsError, match=r"bad.yaml: line 2: invalid YAML \("):
+        load_config(write(tmp_path, "scene: [unclosed\n", "bad.yaml"))
+
+
+@pytest.mark.parametrize("key", ["no.such.key", "render.epz.x", "scene.materials.floor.albedoo.r"])
+def test_unknown_override_is_named_in_full(tmp_path, key):
+    p = write(tmp_path, "scene: {builtin: cornell}\n")
+    for kwargs in ({"overrides": [f"{key}=1"]}, {"values": {key: 1}}):
+        with pytest.raises(LightcutsError) as e:
+            load_config(p, **kwargs)
+        assert str(e.value) == f"{p}: {key}: unknown key"
+    with pytest.raises(LightcutsError, match=r": render.epz: unknown key$"):  # a key of the file itself
+        load_config(write(tmp_path, "scene: {builtin: cornell}\nrender: {epz: 1}\n"), ["render.eps=0.1"])
+
+
+@pytest.mark.parametrize("path", [42, None, b"run.yaml", ["run.yaml"], "", "run\0.yaml"])
+def test_config_path_of_a_wrong_type(path):
+    with pytest.raises(LightcutsError, match=r"^config .*: expected a path"):
+        load_config(path)
+
+
+def test_readme_table_of_limits_is_lightcuts_limits():
+    """Every row of the README's table of limits gives the value of lightcuts.limits, and every
+    bound on work or memory has its row."""
+    readme = (CONFIGS[0].parents[1] / "README.md").read_text()
+    table = readme[readme.index("| What | Limit |"):].split("\n\n")[0].splitlines()[2:]
+    rows = {}
+    for line in table:
+        what, cell = (c.strip() for c in line.strip("|").split("|"))
+        first = cell.split()[0].replace(",", "")
+        rows[what] = 2 ** int(first[3:]) if first.startswith("2**") else int(first)
+    expected = {"pixels (": limits.MAX_PIXELS, "`render.spp` (": limits.MAX_SPP, "`render.spp` x": limits.MAX_SPP,
+                "eye rays": limits.MAX_EYE_RAYS, "`render.passes`": limits.MAX_PASSES,
+                "`lights.direct.count`": limits.MAX_LIGHTS, "`lights.indirect.max_bounces`": limits.MAX_BOUNCES,
+                "triangles made": limits.MAX_EMITTER_TRIANGLES, "`compare --pixels`": limits.MAX_PIXELS,
+                "`reference --spp`": limits.MAX_REFERENCE_SPP, "`scaling --repeats`": limits.MAX_REPEATS,
+                "entries of": limits.MAX_POINTS}
+    assert len(rows) == len(expected)
+    for start, value in expected.items():
+        assert [v for what, v in rows.items() if what.startswith(start)] == [value], start
