@@ -12,6 +12,7 @@ Heavy modules (numba kernels, colour, matplotlib) are imported inside the comman
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import os
 import signal
@@ -53,36 +54,51 @@ def _run(args) -> int:
 
 
 def _on_signal(signum, frame) -> None:
-    """Remove the temporaries, print one line and end the process (worker threads included)."""
-    from lightcuts.io import remove_temporaries
+    """Print one line and end the process (worker threads included), within about two seconds: the
+    process's own stderr silenced first (the threads still running, Dask's loggers and asyncio's
+    would report the end as failures), the run's temporaries removed, a Dask cluster's processes
+    ended and its tasks cancelled. A second signal meanwhile changes nothing."""
+    import logging
+    import warnings
 
+    for s in _SIGNALS:
+        signal.signal(s, signal.SIG_IGN)
     code, what = _SIGNALS[signum]
-    remove_temporaries()
-    sessions = sys.modules.get("lightcuts.distributed.session")  # loaded only by a run on a Dask cluster
-    if sessions is not None:
-        sessions.close_all()  # cancel the cluster's tasks, close a LocalCluster and its worker processes
+    stderr = os.dup(2)
     try:
-        sys.stderr.write(f"\nerror: {what}\n" if sys.stderr.isatty() else f"error: {what}\n")
-        sys.stderr.flush()
+        logging.disable(logging.CRITICAL)
+        warnings.simplefilter("ignore")
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, 2)
+        files = sys.modules.get("lightcuts.io")  # no temporaries before it is loaded
+        if files is not None:
+            with contextlib.suppress(Exception):
+                files.remove_temporaries()
+        sessions = sys.modules.get("lightcuts.distributed.session")  # loaded only by a run on a Dask cluster
+        if sessions is not None:
+            sessions.interrupt()
     finally:
-        os._exit(code)
+        try:
+            os.write(stderr, f"\nerror: {what}\n".encode() if os.isatty(stderr) else f"error: {what}\n".encode())
+        finally:
+            os._exit(code)
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
     if threading.current_thread() is not threading.main_thread():
-        return _run(args)  # signals reach only the main thread: nothing to wait for
+        return _run(build_parser().parse_args(argv))  # signals reach only the main thread: nothing to wait for
     result = []
-
-    def work():
-        try:
-            result.append((True, _run(args)))
-        except BaseException as exc:  # re-raised on the calling thread
-            result.append((False, exc))
-
-    worker = threading.Thread(target=work, name="lightcuts-command", daemon=True)
-    before = {s: signal.signal(s, _on_signal) for s in _SIGNALS}
+    before = {s: signal.signal(s, _on_signal) for s in _SIGNALS}  # from the start: parsing imports a while
     try:
+        args = build_parser().parse_args(argv)
+
+        def work():
+            try:
+                result.append((True, _run(args)))
+            except BaseException as exc:  # re-raised on the calling thread
+                result.append((False, exc))
+
+        worker = threading.Thread(target=work, name="lightcuts-command", daemon=True)
         worker.start()
         while worker.is_alive():
             worker.join(0.05)

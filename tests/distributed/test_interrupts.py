@@ -1,0 +1,96 @@
+"""Ctrl-C and SIGTERM end a run on a LocalCluster at any moment within 2 s, with one line on stderr and
+no process of the command left: the processes started for the cluster are deaf to the terminal's
+signals, recorded, and killed by the command's handler."""
+
+import importlib.util
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).parents[2]
+
+
+def _bench():
+    spec = importlib.util.spec_from_file_location("bench_interrupts", ROOT / "benchmarks" / "bench_interrupts.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+_DEAF = """
+import json, multiprocessing, os, signal, time
+from lightcuts.distributed import processes
+
+def blocked(pid):
+    for line in open(f"/proc/{pid}/status"):
+        if line.startswith("SigBlk:"):
+            mask = int(line.split()[1], 16)
+            return [s for s in ("SIGINT", "SIGTERM") if mask >> (getattr(signal, s) - 1) & 1]
+
+if __name__ == "__main__":
+    processes.install()
+    ctx = multiprocessing.get_context("spawn")
+    p = ctx.Process(target=time.sleep, args=(60,))
+    p.start()
+    time.sleep(0.5)
+    os.kill(p.pid, signal.SIGINT)
+    os.kill(p.pid, signal.SIGTERM)
+    time.sleep(0.5)
+    out = {"blocked": blocked(p.pid), "recorded": p.pid in processes.started(), "alive": p.is_alive(),
+           "mine": blocked(os.getpid())}
+    t0 = time.monotonic()
+    processes.end_all()
+    out["ended_seconds"] = time.monotonic() - t0
+    out["ended"] = not os.path.exists(f"/proc/{p.pid}")  # killed and reaped: not even a zombie
+    try:
+        ctx.Process(target=time.sleep, args=(1,)).start()
+        out["refused"] = False
+    except OSError:
+        out["refused"] = True
+    print(json.dumps(out))
+"""
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads the signal mask in /proc")
+def test_a_started_process_is_deaf_to_the_signals_and_ended_at_once(tmp_path):
+    """A process multiprocessing starts after processes.install(): SIGINT and SIGTERM blocked (so they
+    leave it running), recorded; end_all kills and reaps it at once and refuses any later start. This
+    process's own signals stay as they were."""
+    script = tmp_path / "deaf.py"
+    script.write_text(_DEAF)
+    r = subprocess.run([sys.executable, str(script)], env=dict(os.environ, PYTHONPATH=str(ROOT)), capture_output=True,
+                       text=True, timeout=120)
+    out = json.loads(r.stdout.strip().splitlines()[-1])
+    assert out["blocked"] == ["SIGINT", "SIGTERM"] and out["recorded"] and out["alive"] and out["mine"] == [], out
+    assert out["ended"] and out["ended_seconds"] < 1.0 and out["refused"], out
+    assert r.stderr == "", r.stderr
+
+
+#: (worker count, interrupts): 2 workers (the moments fall on Python and Dask starting, the workers
+#: starting, the scene, lights and trees, the shipping, the tiles) and the most this 2-core machine
+#: starts (the moments fall mostly on the workers starting, the costliest stage to stop).
+TRIALS = [(2, 5), (16, 5)]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("workers, n", TRIALS)
+def test_interrupts_at_random_moments_end_the_command_alone(tmp_path, workers, n):
+    """Seeded moments between 0 and 10 s, SIGINT to the process group (Ctrl-C) or SIGTERM to the
+    command: exit within 2 s with status 130 / 143, the one line on stderr, no process left
+    (benchmarks/bench_interrupts.py runs more)."""
+    import signal
+
+    bench = _bench()
+    moments = np.random.default_rng(workers).uniform(0.0, 10.0, n)
+    for i, at in enumerate(moments):
+        signum = signal.SIGTERM if i % 3 == 2 else signal.SIGINT
+        r = bench.trial(workers, float(at), signum, folder=str(tmp_path), settle=0.0)
+        where = f"--workers {workers}, {r['signal']} at {at:.2f} s"
+        assert not r["finished"], f"{where}: the run ended before the signal; make it longer"
+        assert r["ok_stderr"], (where, r["returncode"], r["stderr"])
+        assert r["exit_seconds"] < 2.0 and r["left"] == [], (where, r["exit_seconds"], r["left"])
