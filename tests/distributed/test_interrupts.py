@@ -32,34 +32,51 @@ def blocked(pid):
             mask = int(line.split()[1], 16)
             return [s for s in ("SIGINT", "SIGTERM") if mask >> (getattr(signal, s) - 1) & 1]
 
+def mapped():  # the names in /dev/shm that a process has open (another one's, in use)
+    names = set()
+    for pid in os.listdir("/proc"):
+        try:
+            names |= {line.split("/dev/shm/")[1].split()[0] for line in open(f"/proc/{pid}/maps") if "/dev/shm/" in line}
+        except (OSError, ValueError):
+            pass
+    return names
+
 if __name__ == "__main__":
     processes.install()
     ctx = multiprocessing.get_context("spawn")
     p = ctx.Process(target=time.sleep, args=(60,))
     p.start()
+    lock = ctx.Lock()  # a named semaphore, as Dask's queues hold
+    semaphore = "/dev/shm/sem." + lock._semlock.name.lstrip("/")
     time.sleep(0.5)
     os.kill(p.pid, signal.SIGINT)
     os.kill(p.pid, signal.SIGTERM)
     time.sleep(0.5)
     out = {"blocked": blocked(p.pid), "recorded": p.pid in processes.started(), "alive": p.is_alive(),
-           "mine": blocked(os.getpid())}
+           "mine": blocked(os.getpid()), "semaphore": os.path.exists(semaphore)}
     t0 = time.monotonic()
     processes.end_all()
     out["ended_seconds"] = time.monotonic() - t0
     out["ended"] = not os.path.exists(f"/proc/{p.pid}")  # killed and reaped: not even a zombie
-    try:
-        ctx.Process(target=time.sleep, args=(1,)).start()
-        out["refused"] = False
-    except OSError:
-        out["refused"] = True
-    print(json.dumps(out))
+    out["unlinked"] = not os.path.exists(semaphore)
+    out["refused"] = []
+    before = set(os.listdir("/dev/shm"))
+    for make in (lambda: ctx.Process(target=time.sleep, args=(1,)).start(), ctx.Lock):
+        try:
+            make()
+        except OSError:
+            out["refused"].append(True)
+    out["made"] = sorted(set(os.listdir("/dev/shm")) - before - mapped())
+    print(json.dumps(out), flush=True)
+    os._exit(0)  # as the CLI's handler ends
 """
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads the signal mask in /proc")
 def test_a_started_process_is_deaf_to_the_signals_and_ended_at_once(tmp_path):
     """A process multiprocessing starts after processes.install(): SIGINT and SIGTERM blocked (so they
-    leave it running), recorded; end_all kills and reaps it at once and refuses any later start. This
+    leave it running), recorded; end_all kills and reaps it at once, unlinks the named semaphores made
+    before and refuses any later process or semaphore, without a word from the resource tracker. This
     process's own signals stay as they were."""
     script = tmp_path / "deaf.py"
     script.write_text(_DEAF)
@@ -67,7 +84,8 @@ def test_a_started_process_is_deaf_to_the_signals_and_ended_at_once(tmp_path):
                        text=True, timeout=120)
     out = json.loads(r.stdout.strip().splitlines()[-1])
     assert out["blocked"] == ["SIGINT", "SIGTERM"] and out["recorded"] and out["alive"] and out["mine"] == [], out
-    assert out["ended"] and out["ended_seconds"] < 1.0 and out["refused"], out
+    assert out["semaphore"] and out["unlinked"] and out["refused"] == [True, True] and out["made"] == [], out
+    assert out["ended"] and out["ended_seconds"] < 1.0, out
     assert r.stderr == "", r.stderr
 
 
