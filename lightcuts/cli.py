@@ -1,10 +1,10 @@
 """Command line: ``lightcuts lights|tree|scaling|render|reference CONFIG`` (one module each in lightcuts.commands).
 
 User errors (LightcutsError) print one line ``error: ...`` and exit with status 2. Ctrl-C (SIGINT)
-and SIGTERM print ``error: interrupted`` / ``error: terminated``, remove the run's temporary files
-and exit with 130 / 143 within about a second: the command runs on a worker thread while the main
-thread waits in short joins, so the signal handler runs at once (the long numba kernels release
-the GIL).
+and SIGTERM print ``error: interrupted`` / ``error: terminated`` alone, remove the run's temporary
+files, end a Dask LocalCluster's processes and exit with 130 / 143 within about a second: the
+command runs on a worker thread while the main thread waits in short joins, so the signal handler
+runs at once (the long numba kernels release the GIL), and a timer bounds what it does.
 Heavy modules (numba kernels, colour, matplotlib) are imported inside the commands so that
 ``lightcuts --help`` stays fast.
 """
@@ -53,11 +53,17 @@ def _run(args) -> int:
         return 130
 
 
+#: Longest time from a signal's handler starting to the process's end, seconds.
+END_WITHIN = 1.5
+_ENDING = threading.Lock()
+
+
 def _on_signal(signum, frame) -> None:
-    """Print one line and end the process (worker threads included), within about two seconds: the
-    process's own stderr silenced first (the threads still running, Dask's loggers and asyncio's
-    would report the end as failures), the run's temporaries removed, a Dask cluster's processes
-    ended and its tasks cancelled. A second signal meanwhile changes nothing."""
+    """Print one line and end the process (worker threads included) within :data:`END_WITHIN`
+    seconds: the process's own stderr silenced first (the threads still running, Dask's loggers and
+    asyncio's would report the end as failures), the run's temporaries removed, a Dask cluster's
+    processes ended and its tasks cancelled; a timer ends the process if that takes longer. A second
+    signal meanwhile changes nothing."""
     import logging
     import warnings
 
@@ -65,11 +71,14 @@ def _on_signal(signum, frame) -> None:
         signal.signal(s, signal.SIG_IGN)
     code, what = _SIGNALS[signum]
     stderr = os.dup(2)
+    line = (f"\nerror: {what}\n" if os.isatty(stderr) else f"error: {what}\n").encode()
+    timer = threading.Timer(END_WITHIN, _end, (stderr, line, code))
+    timer.daemon = True
+    timer.start()
     try:
         logging.disable(logging.CRITICAL)
         warnings.simplefilter("ignore")
-        devnull = os.open(os.devnull, os.O_WRONLY)
-        os.dup2(devnull, 2)
+        os.dup2(os.open(os.devnull, os.O_WRONLY), 2)
         files = sys.modules.get("lightcuts.io")  # no temporaries before it is loaded
         if files is not None:
             with contextlib.suppress(Exception):
@@ -78,10 +87,16 @@ def _on_signal(signum, frame) -> None:
         if sessions is not None:
             sessions.interrupt()
     finally:
-        try:
-            os.write(stderr, f"\nerror: {what}\n".encode() if os.isatty(stderr) else f"error: {what}\n".encode())
-        finally:
-            os._exit(code)
+        _end(stderr, line, code)
+
+
+def _end(fd: int, line: bytes, code: int) -> None:
+    """Write ``line`` to ``fd`` and end the process with ``code``, once (the handler or its timer)."""
+    _ENDING.acquire()
+    try:
+        os.write(fd, line)
+    finally:
+        os._exit(code)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -5,8 +5,10 @@ signals, recorded, and killed by the command's handler."""
 import importlib.util
 import json
 import os
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -89,6 +91,50 @@ def test_a_started_process_is_deaf_to_the_signals_and_ended_at_once(tmp_path):
     assert r.stderr == "", r.stderr
 
 
+_NOISY = """
+import logging, os, signal, sys, threading, time, types, warnings
+from lightcuts import cli
+
+def noise():
+    while True:
+        print("a thread's error", file=sys.stderr, flush=True)
+        os.write(2, b"a C library's line\\n")
+        logging.getLogger("distributed.scheduler").critical("Closed comm")
+        warnings.warn("a warning")
+        time.sleep(0.001)
+
+def interrupt():  # a cluster's end that makes the other threads report failures, and takes too long
+    threading.Thread(target=noise, daemon=True).start()
+    time.sleep(float(sys.argv[1]))
+
+sys.modules["lightcuts.distributed.session"] = types.SimpleNamespace(interrupt=interrupt)
+logging.basicConfig()
+signal.signal(signal.SIGINT, cli._on_signal)
+print("ready", flush=True)
+time.sleep(60)
+"""
+
+
+@pytest.mark.parametrize("hang", [0.3, 30.0])
+def test_the_handler_prints_its_line_alone_and_ends_in_time(tmp_path, hang):
+    """Whatever the other threads write to stderr (print, a C library, Dask's loggers, warnings) once
+    the handler runs is not seen, and the process ends within cli.END_WITHIN even if ending the
+    cluster hangs."""
+    from lightcuts.cli import END_WITHIN
+
+    script = tmp_path / "noisy.py"
+    script.write_text(_NOISY)
+    p = subprocess.Popen([sys.executable, str(script), str(hang)], env=dict(os.environ, PYTHONPATH=str(ROOT)),
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    assert p.stdout.readline() == "ready\n"
+    t0 = time.perf_counter()
+    p.send_signal(signal.SIGINT)
+    _, err = p.communicate(timeout=60)
+    seconds = time.perf_counter() - t0
+    assert p.returncode == 130 and err == "error: interrupted\n", err[:500]
+    assert seconds < min(hang, END_WITHIN) + 0.5, seconds
+
+
 #: (worker count, interrupts): 2 workers (the moments fall on Python and Dask starting, the workers
 #: starting, the scene, lights and trees, the shipping, the tiles) and the most this 2-core machine
 #: starts (the moments fall mostly on the workers starting, the costliest stage to stop).
@@ -101,8 +147,6 @@ def test_interrupts_at_random_moments_end_the_command_alone(tmp_path, workers, n
     """Seeded moments between 0 and 10 s, SIGINT to the process group (Ctrl-C) or SIGTERM to the
     command: exit within 2 s with status 130 / 143, the one line on stderr, no process left
     (benchmarks/bench_interrupts.py runs more)."""
-    import signal
-
     bench = _bench()
     moments = np.random.default_rng(workers).uniform(0.0, 10.0, n)
     for i, at in enumerate(moments):
