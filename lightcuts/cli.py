@@ -64,9 +64,6 @@ def _on_signal(signum, frame) -> None:
     asyncio's would report the end as failures), the run's temporaries removed, a Dask cluster's
     processes ended and its tasks cancelled; a timer ends the process if that takes longer. A second
     signal meanwhile changes nothing."""
-    import logging
-    import warnings
-
     for s in _SIGNALS:
         signal.signal(s, signal.SIG_IGN)
     code, what = _SIGNALS[signum]
@@ -76,8 +73,6 @@ def _on_signal(signum, frame) -> None:
     timer.daemon = True
     timer.start()
     try:
-        logging.disable(logging.CRITICAL)
-        warnings.simplefilter("ignore")
         os.dup2(os.open(os.devnull, os.O_WRONLY), 2)
         files = sys.modules.get("lightcuts.io")  # no temporaries before it is loaded
         if files is not None:
