@@ -174,10 +174,10 @@ def _kill(pids) -> None:
 
 def interrupt(wait: float = 0.5) -> None:
     """What the CLI's signal handler calls before it ends the process, done within about
-    ``3 * wait`` seconds: every process started for a LocalCluster killed (its scheduler and client
-    live in this process and end with it), then the run's tasks on a running cluster cancelled and
-    its workers told to forget the run (the scheduler would forget the tasks anyway once this
-    process's connection closes), for at most ``wait`` seconds."""
+    ``2.5 * wait`` seconds: every process started for a LocalCluster killed (its scheduler and client
+    live in this process and end with it; :func:`lightcuts.distributed.processes.end_all`), then, for
+    at most ``wait`` seconds, the run's tasks on a running cluster cancelled and its workers told to
+    forget the run (the scheduler would forget the tasks anyway once this process's connection closes)."""
     from lightcuts.distributed import processes
 
     processes.end_all(wait)
