@@ -1,6 +1,7 @@
 """The cluster flags of ``render``, ``compare`` and ``scaling``, checked before any work.
 
-``--workers N`` starts a LocalCluster of N worker processes on this machine for the run;
+``--workers N`` starts a LocalCluster of N worker processes on this machine for the run (at most
+what the machine can start: :func:`max_local_workers`);
 ``--scheduler ADDRESS`` connects to a running cluster (``tcp://host:8786``; ``tls://host:8786`` with
 ``--tls-ca``, ``--tls-cert`` and ``--tls-key``, the files of ``distributed.security.Security``);
 ``--connect-timeout`` bounds the wait for the scheduler and its first worker. ``render`` adds
@@ -22,9 +23,17 @@ DEFAULT_CONNECT_TIMEOUT = 10.0
 #: the last tiles leave workers idle; 128 was the fastest on one machine, 32 in the model of 64
 #: machines and more (docs/performance.md, "Distributed renders").
 DEFAULT_TILE_SIZE = 128
-#: The largest tile side and worker count the flags take.
+#: The largest tile side the flags take.
 MAX_TILE_SIZE = 8192
+#: The most worker processes ``--workers`` starts on any machine.
 MAX_WORKERS = 1024
+#: The most worker processes per core of this machine: a worker takes about a CPU-second to start
+#: (Python, Dask, lightcuts and its render kernel), so 8 per core keep the start within about 8 s
+#: (docs/performance.md, "Interrupts"); more workers than cores only share the cores.
+WORKERS_PER_CORE = 8
+#: Memory a worker process holds before any run's inputs, bytes (about 210 MB measured with the
+#: render kernel loaded): ``--workers`` takes at most the available memory over this.
+WORKER_MEMORY = 256 * 2**20
 #: The address schemes a scheduler may have.
 SCHEMES = ("tcp", "tls")
 
@@ -51,7 +60,8 @@ def add_cluster_options(p, tiles: bool = False) -> None:
     """Add the cluster flags to a command's parser (``tiles``: also ``--tile-size``)."""
     g = p.add_argument_group("Dask cluster (pip install 'lightcuts[distributed]')")
     g.add_argument("--workers", type=str, default=None, metavar="N",
-                   help="start a Dask LocalCluster of N worker processes on this machine for the run")
+                   help=f"start a Dask LocalCluster of N worker processes on this machine for the run (at most "
+                        f"{WORKERS_PER_CORE} per core)")
     g.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="run on the Dask cluster of this scheduler (tcp://host:8786, or tls://... with the TLS files)")
     g.add_argument("--tls-ca", default=None, metavar="FILE", help="with a tls:// scheduler: the CA certificate")
@@ -72,6 +82,33 @@ def _integer(text, flag: str, lo: int, hi: int) -> int:
     if value is None or not lo <= value <= hi:
         raise LightcutsError(f"{flag} {text!r}: expected an integer from {lo} to {hi}")
     return value
+
+
+def cores() -> int:
+    """The cores this process may run on (its CPU affinity where the system tells it)."""
+    try:
+        return len(os.sched_getaffinity(0)) or 1
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
+
+
+def max_local_workers() -> tuple[int, str]:
+    """(the most worker processes a LocalCluster of this machine starts, why): :data:`WORKERS_PER_CORE`
+    per core, at most the available memory over :data:`WORKER_MEMORY`, at most :data:`MAX_WORKERS`."""
+    n_cores = cores()
+    limit = min(MAX_WORKERS, WORKERS_PER_CORE * n_cores)
+    why = f"{WORKERS_PER_CORE} per core on {n_cores} core{'s' if n_cores > 1 else ''}"
+    try:
+        import psutil
+
+        available = psutil.virtual_memory().available
+    except (ImportError, OSError):
+        return limit, why
+    by_memory = max(1, int(available // WORKER_MEMORY))
+    if by_memory < limit:
+        limit = by_memory
+        why = f"{WORKER_MEMORY // 2**20} MB each in the {available / 2**30:.1f} GB of memory available"
+    return limit, why
 
 
 def check_address(address: str) -> str:
@@ -108,6 +145,11 @@ def cluster_spec(args) -> ClusterSpec | None:
         raise LightcutsError("--workers: not with --scheduler (one starts a cluster on this machine, the other "
                              "connects to a running one)")
     n = _integer(workers, "--workers", 1, MAX_WORKERS) if workers is not None else None
+    if n is not None:
+        limit, why = max_local_workers()
+        if n > limit:
+            raise LightcutsError(f"--workers {n}: this machine starts at most {limit} worker processes ({why}); "
+                                 "for more, start a cluster of several machines and use --scheduler")
     timeout = DEFAULT_CONNECT_TIMEOUT
     if timeout_text is not None:
         try:

@@ -2,9 +2,9 @@
 scheduler, checked (reachable within the connect timeout, a worker present, the same versions of
 lightcuts, numba, numpy and embreex on every worker) before any work, and closed whatever happens.
 
-The sessions open in this process are listed, so that the CLI's signal handler can cancel their
-tasks and close them (:func:`close_all`) before it ends the process: an interrupted run leaves no
-task running on a cluster and no worker process of its LocalCluster behind.
+The sessions open in this process are listed, so that the CLI's signal handler can end them at once
+(:func:`interrupt`) before it ends the process: an interrupted run leaves no task running on a
+cluster and no process of its LocalCluster behind (:mod:`~lightcuts.distributed.processes`).
 """
 
 from __future__ import annotations
@@ -34,18 +34,21 @@ class Session:
     client : distributed.Client; cluster : the LocalCluster started for the run, or None
     given : the cluster as the user named it (``--workers N`` or the scheduler address as typed)
     owned : whether the run closes the client (False for a Client the caller passed in)
+    local : whether the cluster is a LocalCluster started for the run (its processes this process's)
     timeout : seconds a run waits without any worker before it gives up (the connect timeout)
 
     :func:`local_cluster` starts its cluster on a thread, so that the client makes the scene, lights
     and trees meanwhile: ``client`` and ``cluster`` wait for it on first use.
     """
 
-    def __init__(self, client=None, cluster=None, given: str = "", owned: bool = True, timeout: float = 10.0):
+    def __init__(self, client=None, cluster=None, given: str = "", owned: bool = True, timeout: float = 10.0,
+                 local: bool = False):
         self._client = client
         self._cluster = cluster
         self.timeout = float(timeout)
         self.given = given
         self.owned = owned
+        self.local = local
         self.futures: list = []
         self.tokens: list[str] = []  # the runs whose state the workers keep (lightcuts.distributed.worker)
         self.warming: list = []  # warm_task futures, one per worker
@@ -169,12 +172,31 @@ def _kill(pids) -> None:
     psutil.wait_procs(alive, timeout=2.0)
 
 
-def close_all(timeout: float = 2.0) -> None:
-    """Close every open session (the CLI's signal handler calls this before it ends the process)."""
+def interrupt(wait: float = 0.5) -> None:
+    """What the CLI's signal handler calls before it ends the process, done within about
+    ``2.5 * wait`` seconds: every process started for a LocalCluster killed (its scheduler and client
+    live in this process and end with it; :func:`lightcuts.distributed.processes.end_all`), then, for
+    at most ``wait`` seconds, the run's tasks on a running cluster cancelled and its workers told to
+    forget the run (the scheduler would forget the tasks anyway once this process's connection closes)."""
+    from lightcuts.distributed import processes
+
+    processes.end_all(wait)
     with _OPEN_LOCK:
-        sessions = list(_OPEN)
-    for s in sessions:
-        s.close(timeout)
+        remote = [s for s in _OPEN if not s.local and s._client is not None]
+
+    def forget():
+        for s in remote:
+            s.cancel()
+            if s.tokens:
+                from lightcuts.distributed.worker import drop_runs
+
+                with contextlib.suppress(Exception):
+                    s._client.run(drop_runs, *s.tokens, on_error="ignore")
+
+    if remote:
+        thread = threading.Thread(target=forget, name="lightcuts-forget", daemon=True)
+        thread.start()
+        thread.join(wait)
 
 
 def _quiet():
@@ -194,9 +216,15 @@ def local_cluster(workers: int, threads: int | None = None, kernels: str | None 
     on a free port of 127.0.0.1), each with ``threads`` threads (default this machine's cores over the
     workers, at least 1), started on a thread; once up, its workers load the render kernel of the
     module ``kernels`` (:meth:`Session.warm`)."""
+    import dask
+
+    from lightcuts.distributed import processes
+
     _quiet()
+    processes.install()  # the workers deaf to Ctrl-C, recorded, ended by interrupt()
+    dask.config.set({"distributed.worker.multiprocessing-method": "spawn"})  # what processes.install wraps
     threads = threads or max(1, (os.cpu_count() or 1) // workers)
-    session = Session(None, None, f"--workers {workers}")
+    session = Session(None, None, f"--workers {workers}", local=True)
 
     def start():
         from distributed import Client, LocalCluster

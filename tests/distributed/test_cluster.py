@@ -318,15 +318,18 @@ def test_tasks_waiting_for_a_worker_give_up_after_the_timeout():
 
 
 @SPAWNS
-def test_close_all_ends_a_local_clusters_worker_processes():
-    """What the CLI's signal handler calls before it ends the process."""
+def test_closing_a_local_cluster_ends_its_worker_processes():
+    """What every run on --workers does at its end; the workers are among the processes recorded for
+    the CLI's signal handler (lightcuts.distributed.processes)."""
+    from lightcuts.distributed import processes
     from lightcuts.distributed import session as sessions
 
     s = sessions.local_cluster(2)  # started on a thread
     s.client.wait_for_workers(2)
     pids = list(s.worker_pids)
-    assert len(pids) >= 2 and all(psutil.pid_exists(p) for p in pids) and s in sessions._OPEN
-    sessions.close_all()
+    assert len(pids) == 2 and all(psutil.pid_exists(p) for p in pids) and s in sessions._OPEN
+    assert set(pids) <= set(processes.started())
+    s.close()
     assert not [p for p in pids if psutil.pid_exists(p)] and s not in sessions._OPEN and s.closed
 
 

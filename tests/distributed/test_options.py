@@ -18,6 +18,7 @@ SMALL = ["--set", "camera.resolution=[8,8]", "--set", "lights.indirect.count=200
 @pytest.mark.parametrize("flags, message", [
     (["--workers", "0"], "--workers '0': expected an integer from 1 to 1024"),
     (["--workers", "two"], "--workers 'two': expected an integer from 1 to 1024"),
+    (["--workers", "1024"], "--workers 1024: this machine starts at most "),  # on fewer than 128 cores
     (["--workers", "2", "--scheduler", "tcp://127.0.0.1:8786"], "--workers: not with --scheduler"),
     (["--scheduler", "127.0.0.1"], "--scheduler '127.0.0.1': expected tcp://HOST:PORT or tls://HOST:PORT"),
     (["--scheduler", "udp://h:1"], "--scheduler 'udp://h:1': expected tcp://HOST:PORT"),
@@ -75,3 +76,33 @@ def test_without_cluster_flags_dask_is_not_imported(tmp_path):
                            capture_output=True, text=True, timeout=300)
         rc, loaded = json.loads(r.stdout.strip().splitlines()[-1])
         assert rc == 0 and loaded == [], (argv[0], loaded, r.stderr)
+
+
+def test_a_local_cluster_is_bounded_by_the_cores_and_the_memory(monkeypatch):
+    """--workers takes at most 8 worker processes per core and one per 256 MB of available memory,
+    refused with one line naming the limit and why."""
+    from types import SimpleNamespace
+
+    import psutil
+
+    from lightcuts.distributed import options
+    from lightcuts.errors import LightcutsError
+
+    def machine(cores, gigabytes):
+        monkeypatch.setattr(options, "cores", lambda: cores)
+        monkeypatch.setattr(psutil, "virtual_memory", lambda: SimpleNamespace(available=gigabytes * 2**30))
+
+    machine(2, 24)
+    assert options.max_local_workers() == (16, "8 per core on 2 cores")
+    assert options.cluster_spec(SimpleNamespace(workers="16")).workers == 16
+    with pytest.raises(LightcutsError, match=r"^--workers 17: this machine starts at most 16 worker processes "
+                                             r"\(8 per core on 2 cores\); for more, start a cluster"):
+        options.cluster_spec(SimpleNamespace(workers="17"))
+    machine(64, 1.5)
+    assert options.max_local_workers() == (6, "256 MB each in the 1.5 GB of memory available")
+    with pytest.raises(LightcutsError, match=r"^--workers 7: this machine starts at most 6 worker processes"):
+        options.cluster_spec(SimpleNamespace(workers="7"))
+    machine(1, 0.1)
+    assert options.max_local_workers()[0] == 1  # one worker always
+    machine(256, 1024)
+    assert options.max_local_workers()[0] == options.MAX_WORKERS
