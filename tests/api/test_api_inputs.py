@@ -97,6 +97,20 @@ def test_a_config_validated_again_sets_what_it_set(tiny):
     assert again == cfg and not again.render.clamp.enabled and again.render.clamp.model_fields_set == {"enabled"}
 
 
+def test_a_config_object_renders_as_its_file(tmp_path):
+    """A material override that sets some fields keeps the surface's own for the others, whether the
+    run is given as the file or as its RunConfig (validated again from what it sets, in dicts and
+    lists of models too)."""
+    path = tmp_path / "glossy.yaml"
+    path.write_text(TINY.replace("scene: {builtin: cornell}", "scene: {builtin: cornell, materials: {floor: "
+                                                              "{specular: [0.3, 0.3, 0.3], exponent: 60}}}"))
+    cfg = lightcuts.load_config(path)
+    assert cfg.scene.materials["floor"].model_fields_set == {"specular", "exponent"}
+    by_file = lightcuts.render(path, progress=False)
+    by_object = lightcuts.render(cfg, progress=False)
+    assert np.array_equal(by_file.image, by_object.image) and by_file.image.any()
+
+
 @pytest.fixture(scope="module")
 def results(tiny):
     """A Render and a Comparison of the tiny scene, made once."""
