@@ -37,22 +37,16 @@ def load_config(path, **overrides):
 
 def _config(config):
     """(RunConfig, the file it came from or None) of a RunConfig or a path. A RunConfig is validated
-    again (its fields can be assigned after loading)."""
-    import warnings
-
+    again (its fields can be assigned after loading), from what it sets (:func:`_given`)."""
     from lightcuts.config import RunConfig
     from lightcuts.config.schema import config_from_dict
     from lightcuts.errors import LightcutsError
-    from lightcuts.io import one_line
 
     if isinstance(config, RunConfig):
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # pydantic's notice of a field assigned a wrong type
-            try:
-                data = _set_fields(config)
-            except Exception as exc:  # a field assigned something pydantic cannot read back
-                raise LightcutsError(f"config: a field holds a value that is not a config value "
-                                     f"({one_line(exc)})") from None
+        try:
+            data = _given(config)
+        except RecursionError:
+            raise LightcutsError("config: a field holds a value that contains itself") from None
         return config_from_dict(data, "config", config.base_dir), None
     if not isinstance(config, (str, os.PathLike)):
         raise LightcutsError(f"config {config!r}: expected a RunConfig (lightcuts.load_config) or the path of a "
@@ -60,23 +54,25 @@ def _config(config):
     return load_config(config), str(Path(config))
 
 
-def _set_fields(model) -> dict:
-    """The fields of a pydantic model that were given (in the file, by an override or by assignment),
-    as plain data, nested models recursed into: validated again, the config keeps the difference
-    between a value left at its default and one given (``lights.direct.count`` in a scene without
-    emitters)."""
+def _given(value):
+    """A config model as the dict of what it sets, as it set it, and of the sections left at their
+    default where fields were assigned since: validated again, it sets the same fields, for
+    stages that tell a given value from a default (e.g. ``lights.direct.count`` in a scene without
+    emitters). Values that are not models are kept as they are, for the validation to judge."""
     from pydantic import BaseModel
 
-    out = {}
-    for name in type(model).model_fields:
-        value = getattr(model, name)
-        if isinstance(value, BaseModel):
-            sub = _set_fields(value)
-            if sub or name in model.model_fields_set:
-                out[name] = sub
-        elif name in model.model_fields_set:
-            out[name] = model.model_dump(include={name})[name] if not isinstance(value, str) else value
-    return out
+    if isinstance(value, BaseModel):
+        out = {}
+        for k, f in type(value).model_fields.items():
+            given = _given(getattr(value, k))
+            if not f.exclude and (k in value.model_fields_set or (isinstance(getattr(value, k), BaseModel) and given)):
+                out[k] = given
+        return out
+    if isinstance(value, (list, tuple)):
+        return [_given(v) for v in value]
+    if isinstance(value, dict):
+        return {k: _given(v) for k, v in value.items()}
+    return value
 
 
 def _flag(value, key: str) -> bool:
