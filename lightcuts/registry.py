@@ -46,6 +46,11 @@ def declare(obj=None, *, reads: tuple[str, ...] = (), params: Mapping | None = N
     return attach if obj is None else attach(obj)
 
 
+def declaration(obj) -> dict:
+    """What :func:`declare` attached to ``obj`` (``{"reads", "params", "traits"}``; empty without it)."""
+    return getattr(obj, _DECLARATION, None) or {}
+
+
 @dataclass(frozen=True)
 class Param:
     """One declared plugin parameter.
@@ -177,7 +182,7 @@ class Registry:
         return add if obj is None else add(obj)
 
     def _add(self, name, obj, reads, traits, aliases, replace, description, params=None) -> Entry:
-        declared = getattr(obj, _DECLARATION, None) or {}
+        declared = declaration(obj)
         if self._coerce is not None:
             obj = self._coerce(name, obj)
         if reads is None:
