@@ -5,8 +5,8 @@ start (lightcuts.render.eye: the environment on a miss, an emitter front's emiss
 an emitter); any hit to shade is shaded by a lightcut through all trees (lightcuts.render.cut) or,
 for the reference, by every light (lightcuts.render.reference); surfaces are two-sided. The trees
 and lights are flattened into one forest (lightcuts.render.forest.build_forest), so one kernel
-specialisation serves every light type and the reference. The integrator object is
-lightcuts.render.registry.Lightcuts; the image loop around the band kernel is lightcuts.render.driver.
+specialisation serves every light type and the reference. The integrator is :class:`Lightcuts`
+(registered as ``lightcuts``); the image loop around the band kernel is lightcuts.render.driver.
 
 Shadow rays start ``ray_offset`` (lightcuts.render.driver.shadow_ray_offset, world units) off the
 surface along the shading normal (on the light's side) and stop as far short of a light at a point
@@ -29,15 +29,18 @@ from numba import njit
 
 from lightcuts.accel.kernel_api import new_scratch
 from lightcuts.accel.packets import new_ray_packet
+from lightcuts.errors import LightcutsError
 from lightcuts.hashing import mix64
+from lightcuts.limits import MAX_CONTINUATION_RAYS
 from lightcuts.parallel import next_task
+from lightcuts.registry import declare
 from lightcuts.render.camera import CAM_POSITION, CAM_WIDTH, eye_ray
 from lightcuts.render.continuation import continuation, path_key
 from lightcuts.render.cut import lightcut, luminance
 from lightcuts.render.driver import BAND_PIXELS, Band, RenderResult, warm
 from lightcuts.render.eye import eye_hit
 from lightcuts.render.reference import all_lights
-from lightcuts.render.registry import Lightcuts
+from lightcuts.render.registry import INTEGRATORS, CutIntegrator, check_count
 from lightcuts.render.shading import facing_normal, reflect
 from lightcuts.scene.textures import albedo_at
 
@@ -154,15 +157,55 @@ def _render_band(cdata, width, cam, seed, spp, sx, sy, x0, x1, y0, y1, face_norm
             out_lost[row, col] = lost / spp
 
 
-def band_kernel(integ: Lightcuts, f) -> Band:
-    """The band kernel call of ``integ`` for the driver's frame ``f`` (lightcuts.render.driver)."""
-    fo, reference = f.forest, integ.brute_force
-    head = (*f.caster, f.cam, f.seed, integ.spp, f.sx, f.sy)
-    tail = (*f.surfaces, fo.node_b, fo.node_bi, fo.roots, fo.light_f, fo.light_i, *f.env, float(integ.eps),
-            integ.max_cut, integ.clamp_d2(f.scene), f.ray_offset, integ.visibility, reference,
-            integ.continuation_rays if integ.compensation and not reference else 0,
-            integ.representatives == "stochastic" and not reference)
-    return Band(_render_band, head, tail, max(1, BAND_PIXELS // f.cols), CHUNK)
+@INTEGRATORS.register("lightcuts")
+@declare(lens=False, cut_unit="light nodes per eye ray", kernels="lightcuts.render.lightcut", converging=True,
+         reference=True, forest=True)
+class Lightcuts(CutIntegrator):
+    """A lightcut per eye ray through every light tree (Walter et al. 2005): the kernel above.
+
+    Settings as :class:`CutIntegrator`, plus compensation : add the light the VPLs lose to clamping
+    and to glossy surfaces by a continuation of the eye path (lightcuts.render.continuation; the
+    VPLs must come from glossy particle paths), whose rays count as shadow rays; representatives :
+    ``fixed`` (the trees') or ``stochastic`` (one light drawn per cut node and eye ray,
+    lightcuts.render.cut.stochastic_estimate); continuation_rays : with compensation, the
+    continuations averaged per eye ray (1 to MAX_CONTINUATION_RAYS); all_lights : the brute-force
+    reference instead (every light at every hit, one shadow ray each, no trees). A pinhole camera
+    only (the plan refuses an aperture).
+    """
+
+    def __init__(self, *, spp: int = 1, eps: float = 0.02, max_cut: int = 1000, clamp: bool = True,
+                 clamp_min_distance: float = 0.05, visibility: bool = True, compensation: bool = False,
+                 representatives: str = "fixed", continuation_rays: int = 1, all_lights: bool = False):
+        super().__init__(spp=spp, eps=eps, max_cut=max_cut, clamp=clamp, clamp_min_distance=clamp_min_distance,
+                         visibility=visibility)
+        self.continuation_rays = check_count(continuation_rays, "render.continuation_rays", MAX_CONTINUATION_RAYS)
+        if representatives not in ("fixed", "stochastic"):
+            raise LightcutsError(f"render.representatives: {representatives!r} must be 'fixed' or 'stochastic'")
+        self.compensation = bool(compensation)
+        self.representatives = representatives
+        self.brute_force = bool(all_lights)
+
+    @classmethod
+    def settings(cls, cfg) -> dict:
+        r = cfg.render
+        return {**super().settings(cfg), "compensation": r.compensation, "representatives": r.representatives,
+                "continuation_rays": r.continuation_rays}
+
+    def reference(self) -> "Lightcuts":
+        """Every light at every eye ray's hit, the same eye rays and shading (no trees, eps 0, no
+        compensation)."""
+        return Lightcuts(spp=self.spp, eps=0.0, max_cut=1, clamp=self.clamp,
+                         clamp_min_distance=self.clamp_min_distance, visibility=self.visibility, all_lights=True)
+
+    def band_kernel(self, f) -> Band:
+        """The lightcut kernel's call for the driver's frame ``f`` (lightcuts.render.driver)."""
+        fo, reference = f.forest, self.brute_force
+        head = (*f.caster, f.cam, f.seed, self.spp, f.sx, f.sy)
+        tail = (*f.surfaces, fo.node_b, fo.node_bi, fo.roots, fo.light_f, fo.light_i, *f.env, float(self.eps),
+                self.max_cut, self.clamp_d2(f.scene), f.ray_offset, self.visibility, reference,
+                self.continuation_rays if self.compensation and not reference else 0,
+                self.representatives == "stochastic" and not reference)
+        return Band(_render_band, head, tail, max(1, BAND_PIXELS // f.cols), CHUNK)
 
 
 def render_image(scene, caster, lights: dict, trees: dict, camera=None, spp: int = 1, eps: float = 0.02,
@@ -170,9 +213,9 @@ def render_image(scene, caster, lights: dict, trees: dict, camera=None, spp: int
                  seed: int = 0, crop=None, progress: Callable[[int], object] | None = None,
                  reference: bool = False, visibility: bool = True, pixels=None, compensation: bool = False,
                  representatives: str = "fixed", continuation_rays: int = 1, forest=None) -> RenderResult:
-    """The :class:`~lightcuts.render.registry.Lightcuts` integrator of these settings (with
-    ``reference=True``, its reference: every light at every hit) rendering in one call; arguments
-    as the integrator's constructor and :meth:`~lightcuts.render.registry.Integrator.render`."""
+    """The :class:`Lightcuts` integrator of these settings (with ``reference=True``, its reference:
+    every light at every hit) rendering in one call; arguments as the integrator's constructor and
+    :meth:`~lightcuts.render.registry.Integrator.render`."""
     integ = Lightcuts(spp=spp, eps=eps, max_cut=max_cut, clamp=clamp, clamp_min_distance=clamp_min_distance,
                       visibility=visibility, compensation=compensation, representatives=representatives,
                       continuation_rays=continuation_rays)

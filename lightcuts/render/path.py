@@ -9,11 +9,11 @@ whose back absorbs. At every vertex: next-event estimation (an emitter triangle 
 to its power, a uniform point on it, one shadow ray) and a direction drawn from the BRDF
 (lightcuts.sampling, as the continuation draws it), the two combined by multiple importance
 sampling (power heuristic); Russian roulette on the throughput from the fourth vertex, at most
-``max_depth`` vertices (:data:`lightcuts.render.MAX_PATH_VERTICES`), the last one taking its direct
-light from next-event estimation alone (no BRDF draw follows it). Emitting triangles are the only
-light it knows: a run with a sun or an environment map is refused. Random numbers are a hash of
-(seed, pixel, eye ray, vertex, dimension): the same image on any thread count. The integrator
-object is lightcuts.render.registry.Path; the image loop is lightcuts.render.driver.
+``max_depth`` vertices (:data:`MAX_VERTICES`), the last one taking its direct light from next-event
+estimation alone (no BRDF draw follows it). Emitting triangles are the only light it knows: a run
+with a sun or an environment map is refused. Random numbers are a hash of (seed, pixel, eye ray,
+vertex, dimension): the same image on any thread count. The integrator is :class:`Path`
+(registered as ``path``); the image loop is lightcuts.render.driver.
 """
 
 from __future__ import annotations
@@ -26,14 +26,18 @@ from lightcuts.errors import LightcutsError
 from lightcuts.hashing import mix64
 from lightcuts.lights.indirect import Emitters
 from lightcuts.parallel import next_task
+from lightcuts.registry import Param, declare
 from lightcuts.render.camera import CAM_POSITION, eye_ray
 from lightcuts.render.driver import BAND_PIXELS, Band, warm
 from lightcuts.render.eye import eye_hit
-from lightcuts.render.registry import Path
+from lightcuts.render.registry import INTEGRATORS, Integrator
 from lightcuts.render.shading import facing_normal, material_term
 from lightcuts.sampling import brdf_pdf, reflect, sample_brdf
 from lightcuts.scene.textures import albedo_at
 
+#: Vertices of a path at most (Russian roulette ends nearly all paths long before): the default and
+#: the bound of the integrator's ``max_depth``.
+MAX_VERTICES = 64
 _STREAM = np.uint64(0x50415448)  # "PATH"
 #: Pixels a thread takes at a time.
 CHUNK = 16
@@ -182,32 +186,60 @@ def _render_band(cdata, cam, seed, spp, sx, sy, x0, x1, y0, y1, width, face_norm
             out_rays[row, col] = rays
 
 
-def band_kernel(integ: Path, f) -> Band:
-    """The band kernel call of ``integ`` for the driver's frame ``f`` (lightcuts.render.driver): the
-    scene's emitting triangles as next-event estimation draws them."""
-    if f.env[0].shape[0] > 0:
-        raise LightcutsError("envmap: integrator 'path' renders the scene's emitting triangles only (no "
-                             "environment map)")
-    scene = f.scene
-    e = Emitters(scene)
-    tri_prob = np.zeros(scene.n_faces)  # the probability that next-event estimation draws a triangle
-    if e.n:
-        tri_prob[e.tri] = np.diff(e.cdf, prepend=0.0) / e.cdf[-1]
-    em = (e.tri, np.ascontiguousarray(e.cdf, np.float64), e.p0, e.e1, e.e2, tri_prob,
-          np.ascontiguousarray(scene.face_areas, np.float64))
-    head = (f.caster.data, f.cam, f.seed, integ.spp, f.sx, f.sy)
-    tail = (int(f.camera.width), *f.surfaces, *f.env, *em, f.ray_offset, integ.max_depth)
-    return Band(_render_band, head, tail, max(1, BAND_PIXELS // max(1, f.cols * integ.spp // 4)), CHUNK)
+@INTEGRATORS.register("path")
+@declare(lens=False, cut_unit="path vertices per eye ray", kernels="lightcuts.render.path", reference=False,
+         forest=False, params={
+             "max_depth": Param(int, MAX_VERTICES, lo=1, hi=MAX_VERTICES,
+                                doc="path vertices at most (1: the emitters seen and their direct light)")})
+class Path(Integrator):
+    """A path tracer with lightcuts' own BRDF (the kernel above): next-event estimation on the
+    scene's emitting triangles and BRDF draws, combined by multiple importance sampling, Russian
+    roulette, at most ``max_depth`` vertices per path. It uses no lights or trees (the emitting
+    triangles are its lights), so a run with a sun or an environment map is refused; ``cut_size`` is
+    the path's vertices per eye ray and ``shadow_rays`` its next-event rays. It is its own
+    reference (unbiased): it has no brute-force counterpart.
+    """
+
+    def __init__(self, *, spp: int = 1, max_depth: int = MAX_VERTICES):
+        super().__init__(spp=spp)
+        self.max_depth = self.max_cut = self.param("max_depth", max_depth)
+
+    @classmethod
+    def settings(cls, cfg) -> dict:
+        for key, value in (("lights.sun", cfg.lights.sun), ("lights.environment", cfg.lights.environment)):
+            if value is not None:
+                raise LightcutsError(f"{key}: integrator 'path' renders the scene's emitting triangles only; "
+                                     f"leave {key} out or use render.integrator: lightcuts")
+        return super().settings(cfg)
+
+    def forest(self, lights: dict, trees: dict | None):
+        """None: it renders without a light forest."""
+        return None
+
+    def band_kernel(self, f) -> Band:
+        """The path kernel's call for the driver's frame ``f`` (lightcuts.render.driver): the scene's
+        emitting triangles as next-event estimation draws them."""
+        if f.env[0].shape[0] > 0:
+            raise LightcutsError("envmap: integrator 'path' renders the scene's emitting triangles only (no "
+                                 "environment map)")
+        scene = f.scene
+        e = Emitters(scene)
+        tri_prob = np.zeros(scene.n_faces)  # the probability that next-event estimation draws a triangle
+        if e.n:
+            tri_prob[e.tri] = np.diff(e.cdf, prepend=0.0) / e.cdf[-1]
+        em = (e.tri, np.ascontiguousarray(e.cdf, np.float64), e.p0, e.e1, e.e2, tri_prob,
+              np.ascontiguousarray(scene.face_areas, np.float64))
+        head = (f.caster.data, f.cam, f.seed, self.spp, f.sx, f.sy)
+        tail = (int(f.camera.width), *f.surfaces, *f.env, *em, f.ray_offset, self.max_depth)
+        return Band(_render_band, head, tail, max(1, BAND_PIXELS // max(1, f.cols * self.spp // 4)), CHUNK)
 
 
 def path_trace(scene, caster, camera=None, spp: int = 64, seed: int = 0, crop=None,
-               max_depth: int | None = None) -> tuple[np.ndarray, float]:
-    """lightcuts' scene path-traced with its own BRDF (the :class:`~lightcuts.render.registry.Path`
-    integrator in one call): ((H, W, 3) float32 linear RGB of the camera's image or ``crop``
-    window, wall seconds). ``caster``: a kernel-callable ray caster over the scene; LightcutsError
-    for bad arguments."""
-    integ = Path(spp=spp) if max_depth is None else Path(spp=spp, max_depth=max_depth)
-    result = integ.render(scene, caster, {}, None, camera=camera, seed=seed, crop=crop)
+               max_depth: int = MAX_VERTICES) -> tuple[np.ndarray, float]:
+    """lightcuts' scene path-traced with its own BRDF (the :class:`Path` integrator in one call):
+    ((H, W, 3) float32 linear RGB of the camera's image or ``crop`` window, wall seconds).
+    ``caster``: a kernel-callable ray caster over the scene; LightcutsError for bad arguments."""
+    result = Path(spp=spp, max_depth=max_depth).render(scene, caster, {}, None, camera=camera, seed=seed, crop=crop)
     return result.image, result.seconds
 
 

@@ -82,11 +82,16 @@ def test_the_plan_refuses_what_the_path_integrator_cannot_render(sets, message):
     assert str(e.value).startswith(message) and "\n" not in str(e.value)
 
 
-def test_an_environment_map_or_a_reference_is_one_line_before_any_work(tmp_path):
-    for argv, message in [(["render", str(ROOT / "configs" / "sun-env.yaml"), "--set", "render.integrator=path"],
+def test_a_sun_a_reference_or_a_compare_is_one_line_before_any_work(tmp_path):
+    """What the path integrator cannot do stops the command in one line, exit status 2, before a
+    scene, lights or trees are made; an environment map given to its render is one line too."""
+    path = ["--set", "render.integrator=path"]
+    for argv, message in [(["render", str(ROOT / "configs" / "sun-env.yaml"), *path],
                            "error: lights.sun: integrator 'path' renders the scene's emitting triangles only"),
-                          (["render", str(CORNELL), "--set", "render.integrator=path", "--reference"],
-                           "error: --reference: integrator 'path' has no brute-force reference")]:
+                          (["render", str(CORNELL), *path, "--reference"],
+                           "error: --reference: integrator 'path' has no brute-force reference"),
+                          (["compare", str(CORNELL), *path],
+                           "error: render.integrator: integrator 'path' uses no light trees")]:
         rc, calls, err = cli_recording_work(argv + ["--out", "out"], tmp_path)
         assert (rc, calls) == (2, []), err
         assert err.strip().splitlines() == [err.strip()] and err.strip().startswith(message), err

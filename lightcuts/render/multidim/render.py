@@ -3,27 +3,34 @@ r"""The multidimensional integrator's kernel (or its brute-force reference's): a
 Per pixel: its gather points (lightcuts.render.multidim.gather: ``spp`` eye rays over the pixel and
 the lens), its gather tree (gather_tree), then one product cut (product_cut) over the gather tree
 and the light forest, or, for the reference, every gather point with every light. The integrator
-object is lightcuts.render.registry.Multidimensional; the image loop around the band kernel, shared
-with the other integrators, is lightcuts.render.driver (every random number a hash of the seed and
-the pixel, so images do not depend on the thread count). The result's ``cut_size`` is the number of
+is :class:`Multidimensional` (registered as ``multidimensional``); the image loop around the band
+kernel, shared with the other integrators, is lightcuts.render.driver (every random number a hash of
+the seed and the pixel, so images do not depend on the thread count). The result's ``cut_size`` is the number of
 (gather, light) pairs in each pixel's cut (for the reference: gather points x lights).
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
 from lightcuts.accel.kernel_api import new_scratch
+from lightcuts.errors import LightcutsError
 from lightcuts.parallel import next_task
-from lightcuts.render import DEFAULT_REPRESENTATIVES, MAX_CUT
+from lightcuts.registry import Param, declare
+from lightcuts.render import MAX_CUT
 from lightcuts.render.camera import CAM_WIDTH
 from lightcuts.render.driver import BAND_PIXELS, Band, RenderResult, warm
 from lightcuts.render.lightcut import CHUNK
 from lightcuts.render.multidim.gather import GP_WIDTH, pixel_gather
 from lightcuts.render.multidim.gather_tree import GK_WIDTH, GN_WIDTH, build_gather_tree, gather_representatives
 from lightcuts.render.multidim.product_cut import all_pairs, light_representatives, product_cut
-from lightcuts.render.registry import Multidimensional
+from lightcuts.render.registry import INTEGRATORS, CutIntegrator, check_non_negative
+
+#: Light representatives per light node (1: the tree's own only): the integrator's default.
+DEFAULT_REPRESENTATIVES = 4
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -92,22 +99,71 @@ def _render_band(cdata, cam, seed, spp, sx, sy, aperture, focus, x0, x1, y0, y1,
             out_lost[row, col] = lost
 
 
-def band_kernel(integ: Multidimensional, f) -> Band:
-    """The band kernel call of ``integ`` for the driver's frame ``f`` (lightcuts.render.driver): the
-    light representatives of every forest node drawn, the pixel's pair budget (``max_cut`` per
-    gather point, up to MAX_CUT) and the focus distance set."""
-    fo, spp = f.forest, integ.spp
-    pair_budget = min(integ.max_cut * spp, MAX_CUT)
-    focus = integ.focus_distance if integ.focus_distance is not None else \
-        float(np.linalg.norm(np.asarray(f.camera.look_at) - np.asarray(f.camera.position)))
-    lreps = np.zeros((len(fo.node_f), integ.representatives), np.int64)
-    if len(fo.node_f):
-        light_representatives(fo.node_f, fo.node_k, integ.representatives, f.seed, lreps)
-    head = (f.caster.data, f.cam, f.seed, spp, f.sx, f.sy, integ.aperture, focus)
-    tail = (*f.surfaces, fo.node_b, fo.node_bi, fo.roots, fo.light_f, fo.light_i, lreps,
-            integ.gather_representatives, *f.env, integ.eps, pair_budget, integ.clamp_d2(f.scene), f.ray_offset,
-            integ.visibility, integ.brute_force)
-    return Band(_render_band, head, tail, max(1, BAND_PIXELS // max(1, f.cols * spp // 4)), CHUNK)
+@INTEGRATORS.register("multidimensional")
+@declare(lens=True, cut_unit="pairs per pixel", kernels="lightcuts.render.multidim.render", reference=True,
+         forest=True, params={
+             "representatives": Param(int, DEFAULT_REPRESENTATIVES, lo=1, hi=64,
+                                      doc="light representatives per light node (1: the tree's own only)"),
+             "gather_representatives": Param(int, 1, lo=1, hi=64,
+                                             doc="representative gather points per gather node (1: the gather "
+                                                 "tree's own only)")})
+class Multidimensional(CutIntegrator):
+    """One cut per pixel through (gather tree) x (light trees) (Walter et al. 2006): the kernel above.
+
+    Settings as :class:`CutIntegrator` (``max_cut``: pairs per gather point, so the pixel's cut
+    holds at most ``max_cut * spp`` pairs, up to MAX_CUT: a config means the same effort per eye
+    ray for both cut integrators), plus aperture : lens radius, world units (0: pinhole, exactly
+    the lightcuts integrator's eye rays); focus_distance : distance of the plane in focus along the
+    view axis (None: |look_at - position|); representatives : light representatives per light node
+    (1: the tree's own only); gather_representatives : representative gather points per gather
+    node, the pair (G, L) using the one of column L mod R (1: the gather tree's own only; more
+    decorrelates the pairs' errors at the cost of shadow rays); all_pairs : the brute-force
+    reference instead (every gather point with every light). ``cut_size``: pairs per pixel.
+    """
+
+    def __init__(self, *, spp: int = 16, eps: float = 0.02, max_cut: int = 1000, clamp: bool = True,
+                 clamp_min_distance: float = 0.05, visibility: bool = True, aperture: float = 0.0,
+                 focus_distance: float | None = None, representatives: int = DEFAULT_REPRESENTATIVES,
+                 gather_representatives: int = 1, all_pairs: bool = False):
+        super().__init__(spp=spp, eps=eps, max_cut=max_cut, clamp=clamp, clamp_min_distance=clamp_min_distance,
+                         visibility=visibility)
+        self.aperture = check_non_negative(aperture, "camera.aperture")
+        if focus_distance is not None and not (focus_distance > 0 and math.isfinite(focus_distance)):
+            raise LightcutsError(f"camera.focus_distance: {focus_distance} must be a finite number > 0")
+        self.focus_distance = None if focus_distance is None else float(focus_distance)
+        self.representatives = self.param("representatives", representatives)
+        self.gather_representatives = self.param("gather_representatives", gather_representatives)
+        self.brute_force = bool(all_pairs)
+
+    @classmethod
+    def settings(cls, cfg) -> dict:
+        return {**super().settings(cfg), "aperture": cfg.camera.aperture, "focus_distance": cfg.camera.focus_distance}
+
+    def reference(self) -> "Multidimensional":
+        """Every gather point of every pixel with every light (one shadow ray each): the same gather
+        points."""
+        return Multidimensional(spp=self.spp, eps=self.eps, max_cut=self.max_cut, clamp=self.clamp,
+                                clamp_min_distance=self.clamp_min_distance, visibility=self.visibility,
+                                aperture=self.aperture, focus_distance=self.focus_distance,
+                                representatives=self.representatives,
+                                gather_representatives=self.gather_representatives, all_pairs=True)
+
+    def band_kernel(self, f) -> Band:
+        """The product cut kernel's call for the driver's frame ``f`` (lightcuts.render.driver): the
+        light representatives of every forest node drawn, the pixel's pair budget (``max_cut`` per
+        gather point, up to MAX_CUT) and the focus distance set."""
+        fo, spp = f.forest, self.spp
+        pair_budget = min(self.max_cut * spp, MAX_CUT)
+        focus = self.focus_distance if self.focus_distance is not None else \
+            float(np.linalg.norm(np.asarray(f.camera.look_at) - np.asarray(f.camera.position)))
+        lreps = np.zeros((len(fo.node_f), self.representatives), np.int64)
+        if len(fo.node_f):
+            light_representatives(fo.node_f, fo.node_k, self.representatives, f.seed, lreps)
+        head = (f.caster.data, f.cam, f.seed, spp, f.sx, f.sy, self.aperture, focus)
+        tail = (*f.surfaces, fo.node_b, fo.node_bi, fo.roots, fo.light_f, fo.light_i, lreps,
+                self.gather_representatives, *f.env, self.eps, pair_budget, self.clamp_d2(f.scene), f.ray_offset,
+                self.visibility, self.brute_force)
+        return Band(_render_band, head, tail, max(1, BAND_PIXELS // max(1, f.cols * spp // 4)), CHUNK)
 
 
 def render_multidimensional(scene, caster, lights: dict, trees: dict | None, camera=None, spp: int = 16,
@@ -117,10 +173,9 @@ def render_multidimensional(scene, caster, lights: dict, trees: dict | None, cam
                             aperture: float = 0.0, focus_distance: float | None = None,
                             representatives: int = DEFAULT_REPRESENTATIVES, gather_representatives: int = 1,
                             forest=None) -> RenderResult:
-    """The :class:`~lightcuts.render.registry.Multidimensional` integrator of these settings (with
-    ``reference=True``, its reference: every gather point with every light; ``trees`` may be None)
-    rendering in one call; arguments as the integrator's constructor and
-    :meth:`~lightcuts.render.registry.Integrator.render`."""
+    """The :class:`Multidimensional` integrator of these settings (with ``reference=True``, its
+    reference: every gather point with every light; ``trees`` may be None) rendering in one call;
+    arguments as the integrator's constructor and :meth:`~lightcuts.render.registry.Integrator.render`."""
     integ = Multidimensional(spp=spp, eps=eps, max_cut=max_cut, clamp=clamp, clamp_min_distance=clamp_min_distance,
                              visibility=visibility, aperture=aperture, focus_distance=focus_distance,
                              representatives=representatives, gather_representatives=gather_representatives)
