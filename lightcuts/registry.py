@@ -182,7 +182,7 @@ class Registry:
         return add if obj is None else add(obj)
 
     def _add(self, name, obj, reads, traits, aliases, replace, description, params=None) -> Entry:
-        declared = declaration(obj)
+        declared = getattr(obj, _DECLARATION, None) or {}
         if self._coerce is not None:
             obj = self._coerce(name, obj)
         if reads is None:

@@ -161,9 +161,9 @@ def _render_band(cdata, width, cam, seed, spp, sx, sy, x0, x1, y0, y1, face_norm
 @declare(lens=False, cut_unit="light nodes per eye ray", kernels="lightcuts.render.lightcut", converging=True,
          reference=True, forest=True)
 class Lightcuts(CutIntegrator):
-    """A lightcut per eye ray through every light tree (Walter et al. 2005): the kernel above.
+    """A lightcut per eye ray through every light tree (Walter et al. 2005).
 
-    Settings as :class:`CutIntegrator`, plus compensation : add the light the VPLs lose to clamping
+    Its kernel is this module's. Settings as :class:`CutIntegrator`, plus compensation : add the light the VPLs lose to clamping
     and to glossy surfaces by a continuation of the eye path (lightcuts.render.continuation; the
     VPLs must come from glossy particle paths), whose rays count as shadow rays; representatives :
     ``fixed`` (the trees') or ``stochastic`` (one light drawn per cut node and eye ray,

@@ -192,12 +192,14 @@ def _render_band(cdata, cam, seed, spp, sx, sy, x0, x1, y0, y1, width, face_norm
              "max_depth": Param(int, MAX_VERTICES, lo=1, hi=MAX_VERTICES,
                                 doc="path vertices at most (1: the emitters seen and their direct light)")})
 class Path(Integrator):
-    """A path tracer with lightcuts' own BRDF (the kernel above): next-event estimation on the
-    scene's emitting triangles and BRDF draws, combined by multiple importance sampling, Russian
-    roulette, at most ``max_depth`` vertices per path. It uses no lights or trees (the emitting
-    triangles are its lights), so a run with a sun or an environment map is refused; ``cut_size`` is
-    the path's vertices per eye ray and ``shadow_rays`` its next-event rays. It is its own
-    reference (unbiased): it has no brute-force counterpart.
+    """A path tracer with lightcuts' own BRDF, lit by the scene's emitting triangles: the exact
+    image, without lights or trees; its cut counts path vertices per eye ray.
+
+    Its kernel is this module's: next-event estimation and BRDF draws combined by multiple
+    importance sampling, Russian roulette, at most ``max_depth`` vertices per path. The emitting
+    triangles are its only lights, so a run with a sun or an environment map is refused; its
+    RenderResult's ``shadow_rays`` are its next-event rays. It is unbiased, its own reference: it
+    has no brute-force counterpart.
     """
 
     def __init__(self, *, spp: int = 1, max_depth: int = MAX_VERTICES):
