@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 from typing import Callable, NamedTuple
 
 import numpy as np
+from numba import njit
 
 from lightcuts.accel.base import KernelCaster, kernel_caster_of
 from lightcuts.errors import LightcutsError
@@ -114,6 +115,17 @@ class Band(NamedTuple):
     tail: tuple
     rows: int
     chunk: int
+
+
+@njit(cache=True, inline="always")
+def band_pixel(i, cols, x0, y0, pixels):
+    """In a band kernel: the band's i-th pixel as ``(row, col, px, py)``, its cell in the band's
+    outputs and its full-image coordinates (row i of a non-empty pixel list ``pixels``)."""
+    row = i // cols
+    col = i - row * cols
+    if pixels.shape[0] > 0:
+        return row, col, pixels[i, 0], pixels[i, 1]
+    return row, col, x0 + col, y0 + row
 
 
 def kernel_array(a, dtype) -> np.ndarray:

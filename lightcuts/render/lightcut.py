@@ -37,7 +37,7 @@ from lightcuts.registry import declare
 from lightcuts.render.camera import CAM_POSITION, CAM_WIDTH, eye_ray
 from lightcuts.render.continuation import continuation, path_key
 from lightcuts.render.cut import lightcut, luminance
-from lightcuts.render.driver import BAND_PIXELS, Band, RenderResult, warm
+from lightcuts.render.driver import BAND_PIXELS, Band, RenderResult, band_pixel, warm
 from lightcuts.render.eye import eye_hit
 from lightcuts.render.reference import all_lights
 from lightcuts.render.registry import INTEGRATORS, CutIntegrator, check_count
@@ -139,11 +139,7 @@ def _render_band(cdata, width, cam, seed, spp, sx, sy, x0, x1, y0, y1, face_norm
         if c * CHUNK >= n:
             break
         for i in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
-            row = i // cols
-            col = i - row * cols
-            px, py = x0 + col, y0 + row
-            if pixels.shape[0] > 0:
-                px, py = pixels[i, 0], pixels[i, 1]
+            row, col, px, py = band_pixel(i, cols, x0, y0, pixels)
             a0, a1, a2, cut, rays, lost = _render_pixel(
                 cdata, width, cam, seed, spp, sx, sy, px, py,
                 face_normal, albedo, tex, specular, exponent, emission, node_b, node_bi, roots, light_f, light_i,

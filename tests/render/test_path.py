@@ -102,3 +102,21 @@ def test_a_sun_a_reference_or_a_compare_is_one_line_before_any_work(tmp_path):
         env = EnvironmentMap(np.ones((4, 8, 3), np.float32))
         with make_caster(scene) as caster:
             make_integrator(path_config()).render(scene, caster, {}, None, envmap=env)
+
+
+def test_warm_kernels_compiles_the_specialisation_renders_use():
+    """The commands compile the path kernel in a child process through warm_kernels (the ``kernels``
+    trait's module; another scene, no lights): a run's render then finds that very specialisation."""
+    from lightcuts.commands.warmup import is_cached
+    from lightcuts.render import path
+    from lightcuts.render.registry import INTEGRATORS
+
+    assert INTEGRATORS.entry("path").trait("kernels") == path.__name__
+    path.warm_kernels()
+    n = len(path._render_band.signatures)
+    cfg = path_config(**{"render.integrator": {"type": "path", "max_depth": 5}})
+    scene = run_scene(cfg)
+    with make_caster(scene) as caster:
+        make_integrator(cfg).render(scene, caster, {}, None, crop=(0, 0, 2, 2))
+        path_trace(scene, caster, spp=3, seed=2, crop=(3, 3, 5, 4))
+    assert len(path._render_band.signatures) == n and is_cached(path._render_band)

@@ -22,7 +22,7 @@ from lightcuts.parallel import next_task
 from lightcuts.registry import Param, declare
 from lightcuts.render import MAX_CUT
 from lightcuts.render.camera import CAM_WIDTH
-from lightcuts.render.driver import BAND_PIXELS, Band, RenderResult, warm
+from lightcuts.render.driver import BAND_PIXELS, Band, RenderResult, band_pixel, warm
 from lightcuts.render.lightcut import CHUNK
 from lightcuts.render.multidim.gather import GP_WIDTH, pixel_gather
 from lightcuts.render.multidim.gather_tree import GK_WIDTH, GN_WIDTH, build_gather_tree, gather_representatives
@@ -63,11 +63,7 @@ def _render_band(cdata, cam, seed, spp, sx, sy, aperture, focus, x0, x1, y0, y1,
         if c * CHUNK >= n:
             break
         for i in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
-            row = i // cols
-            col = i - row * cols
-            px, py = x0 + col, y0 + row
-            if pixels.shape[0] > 0:
-                px, py = pixels[i, 0], pixels[i, 1]
+            row, col, px, py = band_pixel(i, cols, x0, y0, pixels)
             ng, a0, a1, a2 = pixel_gather(cdata, buf, cam, seed, spp, sx, sy, px, py, aperture, focus, face_normal,
                                           albedo, tex, specular, exponent, emission, env_pixels, env_rotation, env_scale,
                                           gp)
