@@ -66,36 +66,18 @@ def _pixel(cdata, buf, cam, seed, spp, sx, sy, px, py, width, face_normal, albed
         key = mix64(mix64(mix64(np.uint64(seed) ^ _STREAM) ^ np.uint64(pixel)) ^ np.uint64(s))
         x0, x1, x2 = o0, o1, o2
         d0, d1, d2 = eye_ray(cam, seed, px, py, s, sx, sy)
+        t, prim, e0, e1, e2 = eye_hit(cdata, buf, x0, x1, x2, d0, d1, d2, face_normal, emission, env_pixels,
+                                      env_rotation, env_scale)
+        a0 += e0
+        a1 += e1
+        a2 += e2
+        if prim < 0:
+            continue
         b0 = b1 = b2 = 1.0
-        pdf_prev = 0.0  # density of the BRDF draw that made this segment (0: the eye ray)
-        for v in range(max_depth):
-            if v == 0:
-                t, prim, e0, e1, e2 = eye_hit(cdata, buf, x0, x1, x2, d0, d1, d2, face_normal, emission,
-                                              env_pixels, env_rotation, env_scale)
-                a0 += e0
-                a1 += e1
-                a2 += e2
-                if prim < 0:
-                    break
-                f0, f1, f2 = face_normal[prim, 0], face_normal[prim, 1], face_normal[prim, 2]
-            else:
-                t, prim = intersect(cdata, buf, x0, x1, x2, d0, d1, d2, 0.0, np.inf)
-                if prim < 0:
-                    break
-                f0, f1, f2 = face_normal[prim, 0], face_normal[prim, 1], face_normal[prim, 2]
-                cos_f = f0 * d0 + f1 * d1 + f2 * d2
-                if emission[prim, 0] > 0.0 or emission[prim, 1] > 0.0 or emission[prim, 2] > 0.0:
-                    if cos_f >= 0.0:
-                        break  # the back of an emitter absorbs
-                    w = 1.0
-                    if pdf_prev > 0.0 and tri_prob[prim] > 0.0:
-                        pl = tri_prob[prim] / face_area[prim] * t * t / -cos_f
-                        w = pdf_prev * pdf_prev / (pdf_prev * pdf_prev + pl * pl)
-                    a0 += b0 * emission[prim, 0] * w
-                    a1 += b1 * emission[prim, 1] * w
-                    a2 += b2 * emission[prim, 2] * w
+        for v in range(max_depth):  # vertex v at the hit (t, prim) of the segment from x along d
             vertices += 1
             last = v == max_depth - 1
+            f0, f1, f2 = face_normal[prim, 0], face_normal[prim, 1], face_normal[prim, 2]
             y0, y1, y2 = x0 + t * d0, x1 + t * d1, x2 + t * d2
             n0, n1, n2 = facing_normal(f0, f1, f2, -d0, -d1, -d2)
             r0, r1, r2 = reflect(-d0, -d1, -d2, n0, n1, n2)
@@ -153,6 +135,21 @@ def _pixel(cdata, buf, cam, seed, spp, sx, sy, px, py, width, face_normal, albed
                 b2 /= rr
             x0, x1, x2 = s0, s1, s2
             d0, d1, d2 = w0, w1, w2
+            # the next hit; an emitter's front adds its emission, weighted against next-event estimation
+            t, prim = intersect(cdata, buf, x0, x1, x2, d0, d1, d2, 0.0, np.inf)
+            if prim < 0:
+                break
+            cos_f = face_normal[prim, 0] * d0 + face_normal[prim, 1] * d1 + face_normal[prim, 2] * d2
+            if emission[prim, 0] > 0.0 or emission[prim, 1] > 0.0 or emission[prim, 2] > 0.0:
+                if cos_f >= 0.0:
+                    break  # the back of an emitter absorbs
+                w = 1.0
+                if pdf_prev > 0.0 and tri_prob[prim] > 0.0:
+                    pl = tri_prob[prim] / face_area[prim] * t * t / -cos_f
+                    w = pdf_prev * pdf_prev / (pdf_prev * pdf_prev + pl * pl)
+                a0 += b0 * emission[prim, 0] * w
+                a1 += b1 * emission[prim, 1] * w
+                a2 += b2 * emission[prim, 2] * w
     return a0 / spp, a1 / spp, a2 / spp, vertices, rays
 
 
@@ -233,7 +230,7 @@ class Path(Integrator):
               np.ascontiguousarray(scene.face_areas, np.float64))
         head = (f.caster.data, f.cam, f.seed, self.spp, f.sx, f.sy)
         tail = (int(f.camera.width), *f.surfaces, *f.env, *em, f.ray_offset, self.max_depth)
-        return Band(_render_band, head, tail, max(1, BAND_PIXELS // max(1, f.cols * self.spp // 4)), CHUNK)
+        return Band(_render_band, head, tail, max(1, BAND_PIXELS // f.cols), CHUNK)
 
 
 def path_trace(scene, caster, camera=None, spp: int = 64, seed: int = 0, crop=None,
