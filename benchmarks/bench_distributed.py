@@ -101,26 +101,24 @@ def tile_seconds(cfg, plan, scene, envmap, lights, trees, windows, spp: int = 1)
     """(single-thread seconds of each window, the worker's setup seconds), each tile rendered as a
     worker renders it (lightcuts.distributed.runner.tile_task's call: the run's caster and light
     forest made once, then the crop window)."""
-    from lightcuts.commands.common import image_settings
     from lightcuts.distributed.worker import Run
     from lightcuts.parallel import num_threads
+    from lightcuts.render.registry import make_integrator
 
     c = cfg.model_copy(update={"render": cfg.render.model_copy(update={"spp": spp})})
-    integ = plan.integrator
+    integ = make_integrator(c, plan.integrator)
     out = []
     with num_threads(1):
         t0 = time.perf_counter()
         caster = plan.make_caster(scene)
         run = Run(plan, scene, envmap, caster, 0.0)
-        forest = {"forest": run.forest(lights, trees)} if integ.trait("forest", False) else {}
+        forest = run.forest(lights, trees) if plan.integrator.trait("forest", False) else None
         setup = time.perf_counter() - t0
-        settings = {**image_settings(c, scene.camera, envmap, integ), **forest}
-        integ.obj(scene, caster, lights, trees, eps=c.render.eps, max_cut=c.render.max_cut,
-                  **{**settings, "crop": (0, 0, 1, 1)}, **integ.params)  # the kernel loaded
+        inputs = dict(forest=forest, envmap=envmap, seed=c.seed)
+        integ.render(scene, caster, lights, trees, crop=(0, 0, 1, 1), **inputs)  # the kernel loaded
         for w in windows:
             t0 = time.perf_counter()
-            integ.obj(scene, caster, lights, trees, eps=c.render.eps, max_cut=c.render.max_cut,
-                      **{**settings, "crop": w}, **integ.params)
+            integ.render(scene, caster, lights, trees, crop=w, **inputs)
             out.append(time.perf_counter() - t0)
         caster.close()
     return out, setup

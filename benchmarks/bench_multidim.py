@@ -19,7 +19,7 @@ def main() -> None:
     from lightcuts.commands.plan import plan_run
     from lightcuts.config.schema import load_config
     from lightcuts.lights.lightset import LUMINANCE
-    from lightcuts.render.integrator import render_image
+    from lightcuts.render.lightcut import render_image
     from lightcuts.render.multidim import render_multidimensional, render_multidimensional_reference
     from lightcuts.scene.scene import Camera
 

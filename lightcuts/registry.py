@@ -46,6 +46,11 @@ def declare(obj=None, *, reads: tuple[str, ...] = (), params: Mapping | None = N
     return attach if obj is None else attach(obj)
 
 
+def declaration(obj) -> dict:
+    """What :func:`declare` attached to ``obj`` (``{"reads", "params", "traits"}``; empty without it)."""
+    return getattr(obj, _DECLARATION, None) or {}
+
+
 @dataclass(frozen=True)
 class Param:
     """One declared plugin parameter.

@@ -84,7 +84,7 @@ def test_the_package_and_its_api_load_no_stage(module):
     assert not [m for m in loaded if m.split(".")[1:2] and m.split(".")[1] in STAGES + ("commands", "cli")], loaded
 
 
-@pytest.mark.parametrize("module", ["lightcuts.render.integrator", "lightcuts.report.images",
+@pytest.mark.parametrize("module", ["lightcuts.render.lightcut", "lightcuts.report.images",
                                     "lightcuts.trees.build", "lightcuts.lights.generate", "lightcuts.accel.embree.embree",
                                     "lightcuts.cluster.agglomerate"])
 def test_stages_load_no_command(module):

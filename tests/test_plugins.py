@@ -18,9 +18,8 @@ from numba import njit
 
 import lightcuts
 from lightcuts.errors import LightcutsError
-from lightcuts.accel import make_caster
 from lightcuts.registry import Registry, declare
-from lightcuts.render.integrators import INTEGRATORS
+from lightcuts.render.registry import INTEGRATORS
 from lightcuts.scene.registry import SCENES
 from lightcuts.trees import BUILDERS, METRICS, Metric, build_tree, register_metric, tree_spec, validate_tree
 from lightcuts.trees.metric import metric_values
@@ -241,38 +240,89 @@ def test_scene_type_contract(name, tmp_path):
 
 # --------------------------------------------------------------------------------- integrators
 
+@pytest.fixture(scope="module")
+def small_cornell():
+    """A 12 x 10 Cornell box run: its scene, caster, lights and trees, made by the plan's stages."""
+    from lightcuts.commands.plan import plan_run
+
+    cfg = lightcuts.load_config(ROOT / "configs" / "cornell.yaml", **{"camera.resolution": [12, 10],
+                                                                      "lights.direct.count": 64,
+                                                                      "lights.indirect.count": 300})
+    plan = plan_run(cfg, render=True)
+    scene = plan.scene()
+    with plan.make_caster(scene) as caster:
+        lights = plan.lights(scene, caster)
+        yield cfg, scene, caster, lights, plan.trees(lights)
+
+
 @pytest.mark.parametrize("name", INTEGRATORS.names())
-def test_integrator_contract(name):
-    """Every integrator, called as the render path calls it with its declared defaults: an image of
-    the camera's size, finite and non-negative, and a cut size per pixel."""
-    from lightcuts.lights.direct import direct_lights
-    from lightcuts.scene.cornell import cornell_box
+def test_integrator_contract(name, small_cornell):
+    """Every integrator, made from a config as the commands make it (make_integrator: the config's
+    settings and the entry's declared defaults): an image of the window's size, finite, non-negative
+    and lit, a cut per pixel within its bound (``max_cut`` per eye ray, in its ``cut_unit``); a crop
+    window and a pixel list hold exactly those pixels of the whole image; its reference, where its
+    ``reference`` trait says it has one, renders the same window (else asking for it is one line)."""
+    from lightcuts.render.registry import Integrator, make_integrator
 
-    resolved = INTEGRATORS.resolve(name, "render.integrator")
-    scene = cornell_box()
-    scene.camera = type(scene.camera)(scene.camera.position, scene.camera.look_at, scene.camera.up,
-                                      scene.camera.fov, 12, 10)
-    lights = {"oriented": direct_lights(scene, 64, seed=1)}
-    trees = {t: build_tree(ls, builder="divisive-3d") for t, ls in lights.items()}
-    with make_caster(scene, "embree") as caster:
-        result = resolved.obj(scene, caster, lights, trees, camera=scene.camera, spp=1, eps=0.02, max_cut=1000,
-                              clamp=True, clamp_min_distance=0.05, envmap=None, seed=0, crop=None, progress=None,
-                              **resolved.params)
-    assert result.image.shape == (10, 12, 3) and np.all(np.isfinite(result.image)) and np.all(result.image >= 0)
-    assert result.image.sum() > 0 and result.cut_size.shape == (10, 12)
+    cfg, scene, caster, lights, trees = small_cornell
+    entry = INTEGRATORS.entry(name)
+    assert entry.trait("cut_unit") and entry.trait("kernels") and isinstance(entry.trait("reference"), bool)
+    integ = make_integrator(cfg.model_copy(update={"render": cfg.render.model_copy(update={"integrator": name})}))
+    assert type(integ) is entry.obj and isinstance(integ, Integrator) and integ.spp == cfg.render.spp
+    whole = integ.render(scene, caster, lights, trees)
+    assert whole.image.shape == (10, 12, 3) and np.all(np.isfinite(whole.image)) and np.all(whole.image >= 0)
+    assert whole.image.sum() > 0 and whole.cut_size.shape == (10, 12) and whole.eye_rays == 120 * integ.spp
+    assert 0 <= whole.cut_size.min() and whole.cut_size.max() <= whole.max_cut * integ.spp
+    crop = integ.render(scene, caster, lights, trees, crop=(3, 2, 9, 7))
+    assert crop.image.tobytes() == whole.image[2:7, 3:9].tobytes()
+    assert crop.cut_size.tobytes() == whole.cut_size[2:7, 3:9].tobytes()
+    some = integ.render(scene, caster, lights, trees, pixels=[[11, 9], [0, 0], [5, 4]])
+    assert some.image[:, 0].tobytes() == whole.image[[9, 0, 4], [11, 0, 5]].tobytes()
+    if entry.trait("reference"):
+        ref = integ.reference()
+        assert ref.brute_force and not integ.brute_force
+        result = ref.render(scene, caster, lights, None, crop=(3, 2, 9, 7))
+        assert result.reference and result.image.shape == (5, 6, 3) and np.all(np.isfinite(result.image))
+    else:
+        with pytest.raises(LightcutsError, match="^render.integrator: .* has no brute-force reference$"):
+            integ.reference()
 
 
-def test_lightcuts_integrator_is_render_image():
-    from lightcuts.render.integrator import render_image
-    from lightcuts.scene.cornell import cornell_box
-    from lightcuts.lights.direct import direct_lights
+#: (constructor keyword, a bad value, the config key its one-line error names), for the integrators
+#: that take the keyword.
+BAD_SETTINGS = [("spp", 0, "render.spp"), ("spp", 2.5, "render.spp"), ("eps", float("nan"), "render.eps"),
+                ("eps", -0.1, "render.eps"), ("max_cut", 0, "render.max_cut"), ("max_cut", 1 << 21, "render.max_cut"),
+                ("clamp_min_distance", -1.0, "render.clamp.min_distance"),
+                ("continuation_rays", 65, "render.continuation_rays"),
+                ("representatives", "random", "render.representatives"), ("aperture", float("inf"), "camera.aperture"),
+                ("focus_distance", 0.0, "camera.focus_distance")]
 
-    scene = cornell_box()
-    lights = {"oriented": direct_lights(scene, 64, seed=1)}
-    trees = {t: build_tree(ls) for t, ls in lights.items()}
-    with make_caster(scene, "embree") as caster:
-        a = INTEGRATORS.get("lightcuts")(scene, caster, lights, trees, crop=(200, 200, 216, 216))
-        b = render_image(scene, caster, lights, trees, crop=(200, 200, 216, 216))
+
+@pytest.mark.parametrize("name", INTEGRATORS.names())
+def test_integrator_refuses_bad_settings_when_made(name):
+    """An integrator checks what it is given when it is made, not when it renders: a bad setting or
+    an own parameter out of its declared range is one LightcutsError line naming the config key."""
+    import inspect
+
+    cls = INTEGRATORS.get(name)
+    takes = inspect.signature(cls).parameters
+    params = INTEGRATORS.entry(name).params
+    own = [(p, decl.hi + 1, f"render.integrator.{p}") for p, decl in params.items()]
+    cases = [c for c in BAD_SETTINGS if c[0] in takes and c[0] not in params] + own
+    assert [c for c in cases if c[0] == "spp"] and all(p in takes for p, _, _ in own)
+    for key, value, config_key in cases:
+        with pytest.raises(LightcutsError) as e:
+            cls(**{key: value})
+        assert str(e.value).startswith(f"{config_key}: ") and "\n" not in str(e.value), (key, str(e.value))
+    cls()  # the defaults are valid
+
+
+def test_the_lightcuts_entry_is_render_image(small_cornell):
+    from lightcuts.render.lightcut import render_image
+
+    cfg, scene, caster, lights, trees = small_cornell
+    a = INTEGRATORS.get("lightcuts")(eps=0.01).render(scene, caster, lights, trees, seed=3)
+    b = render_image(scene, caster, lights, trees, eps=0.01, seed=3)
     assert a.image.tobytes() == b.image.tobytes() and np.array_equal(a.cut_size, b.cut_size)
 
 

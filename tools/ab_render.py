@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import importlib.util
 import re
 import shutil
 import statistics
@@ -34,8 +35,10 @@ sys.path.insert(0, str(ROOT))
 
 from lightcuts.io import save_csv  # noqa: E402
 
-MODULES = ("accel", "lights.direct", "lights.indirect", "lights.lightset", "render.integrator", "scene.cornell",
-           "scene.scene", "trees.build")
+MODULES = ("accel", "lights.direct", "lights.indirect", "lights.lightset", "scene.cornell", "scene.scene",
+           "trees.build")
+#: The module of ``render_image``: its name in this checkout, else in older ones.
+RENDER_MODULES = ("render.lightcut", "render.integrator")
 
 
 def copy_as(src: Path, dst: Path, name: str) -> None:
@@ -50,6 +53,8 @@ def copy_as(src: Path, dst: Path, name: str) -> None:
 
 def setup(pkg: str, n_indirect: int):
     m = {name: importlib.import_module(f"{pkg}.{name}") for name in MODULES}
+    render_image = next(importlib.import_module(f"{pkg}.{name}") for name in RENDER_MODULES
+                        if importlib.util.find_spec(f"{pkg}.{name}") is not None).render_image
     scene = m["scene.cornell"].cornell_box()
     c = scene.camera
     camera = m["scene.scene"].Camera(c.position, c.look_at, c.up, c.fov, 512, 512)
@@ -60,8 +65,7 @@ def setup(pkg: str, n_indirect: int):
     tree = m["trees.build"].build_tree(lights, "agglomerative", "walter2008", seed=3)
 
     def render(crop):
-        return m["render.integrator"].render_image(scene, caster, {"oriented": lights}, {"oriented": tree},
-                                                   camera=camera, crop=crop)
+        return render_image(scene, caster, {"oriented": lights}, {"oriented": tree}, camera=camera, crop=crop)
     return render
 
 

@@ -60,9 +60,16 @@ def resolve_rows(cfg, builders=None, metrics=None, keys=("--builders", "--metric
     """(label, TreeSpec) per row; each builder gets only the metric and c it reads; a builder that
     reads a metric gets one row per metric name, labelled ``builder/metric`` when there are several.
     builders, metrics : comma-separated names or sequences (None: :func:`default_builders`, the
-    config's metric); keys : how errors name the two options."""
+    config's metric); keys : how errors name the two options. The rows differ only by their trees,
+    so the config's integrator must render from them (its ``forest`` trait)."""
+    from lightcuts.render.registry import INTEGRATORS
     from lightcuts.trees.spec import config_tree, tree_spec
 
+    integrator = INTEGRATORS.resolve(cfg.render.integrator, "render.integrator")
+    if not integrator.trait("forest", False):
+        users = [e.name for e in INTEGRATORS.entries() if e.trait("forest", False)]
+        raise LightcutsError(f"render.integrator: integrator {integrator.name!r} uses no light trees, which a "
+                             f"compare's rows differ by; use render.integrator: {' or '.join(users)}")
     bkey, mkey = keys
     builders = names(builders, bkey) if builders is not None else default_builders()
     given = metrics is not None
@@ -265,7 +272,8 @@ def save_reference(store, key: str, reference: dict) -> None:
 
 def _reference(cfg, shared, store, pixels, progress: bool) -> dict:
     """The all-lights reference on the pixel sample: {"image": (K, 3), "seconds", "shadow_rays"}."""
-    from lightcuts.commands.common import progress_bar, render_settings
+    from lightcuts.commands.common import progress_bar
+    from lightcuts.render.registry import make_integrator
 
     key = reference_key(cfg, pixels)
     cached = stored_reference(store, key)
@@ -275,9 +283,9 @@ def _reference(cfg, shared, store, pixels, progress: bool) -> dict:
     with progress_bar(len(pixels), f"{cfg.name}: reference on {len(pixels)} pixels", not progress,
                       unit="px") as bar:
         t0 = time.perf_counter()
-        settings = {**render_settings(cfg, s.scene.camera, s.envmap), "crop": None}
-        reference = s.plan.integrator.trait("reference")
-        ref = reference(s.scene, s.caster, s.lights, progress=bar.update, pixels=pixels, **settings)
+        reference = make_integrator(cfg, s.plan.integrator).reference()
+        ref = reference.render(s.scene, s.caster, s.lights, None, envmap=s.envmap, seed=cfg.seed, pixels=pixels,
+                               progress=bar.update)
         seconds = time.perf_counter() - t0
     result = {"image": ref.image[:, 0], "seconds": seconds, "shadow_rays": int(ref.shadow_rays)}
     save_reference(store, key, result)

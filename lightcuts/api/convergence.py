@@ -58,7 +58,7 @@ def loglog_slope(x, y) -> float | None:
 
 
 #: The path tracers a run can be measured against: Mitsuba 3's (an independent renderer; Phong
-#: approximated) and lightcuts' own (lightcuts.render.pathtrace: the exact BRDF; emitters only).
+#: approximated) and lightcuts' own (lightcuts.render.path: the exact BRDF; emitters only).
 RENDERERS = ("mitsuba", "lightcuts")
 
 
@@ -96,7 +96,7 @@ class PathTracer:
             return {"renderer": "mitsuba", **mitsuba_version()}
         from lightcuts import __version__
 
-        return {"renderer": "lightcuts", "version": __version__, "variant": "lightcuts.render.pathtrace"}
+        return {"renderer": "lightcuts", "version": __version__, "variant": "lightcuts.render.path"}
 
     def render(self, cfg, scene, envmap, spp: int, seed: int, integrator: str = "path") -> tuple[np.ndarray, float]:
         if self.name == "mitsuba":
@@ -104,7 +104,7 @@ class PathTracer:
 
             return render_mitsuba(cfg, scene, envmap, spp=spp, integrator=integrator, seed=seed)
         from lightcuts.accel import make_caster
-        from lightcuts.render.pathtrace import path_trace
+        from lightcuts.render.path import path_trace
 
         if id(scene) not in self._casters:
             self._casters[id(scene)] = (scene, make_caster(scene))

@@ -87,12 +87,16 @@ class Render:
         return f"<Render {self.summary()}>"
 
 
-def check_reference(cfg) -> None:
-    """LightcutsError unless the all-lights reference measures this run: it is the image of one
-    VPL set without the compensation, so passes > 1 and compensation have none (their reference is
-    a path tracer's: ``lightcuts reference``)."""
+def check_reference(cfg, integrator) -> None:
+    """LightcutsError unless the brute-force reference measures this run: the plan's ``integrator``
+    must have one (its ``reference`` trait), and it is the image of one VPL set without the
+    compensation, so passes > 1 and compensation have none (their reference is a path tracer's:
+    ``lightcuts reference``)."""
     from lightcuts.errors import LightcutsError
 
+    if not integrator.trait("reference", False):
+        raise LightcutsError(f"--reference: integrator {integrator.name!r} has no brute-force reference; "
+                             f"compare it with another run or a path tracer (lightcuts reference CONFIG)")
     if cfg.render.passes > 1 or cfg.render.compensation:
         raise LightcutsError("--reference: the all-lights reference is one VPL set's image without compensation; "
                              "with render.passes > 1 or render.compensation compare against a path tracer "
@@ -113,7 +117,7 @@ def render_run(cfg, plan, source: str | None, reference: bool = False, progress:
     from lightcuts.commands.warmup import finish_warmup
 
     if reference:
-        check_reference(cfg)
+        check_reference(cfg, plan.integrator)
 
     warmup = []  # the child compiling the render kernel, if any
     try:
@@ -125,9 +129,10 @@ def render_run(cfg, plan, source: str | None, reference: bool = False, progress:
 def _run(cfg, plan, source, reference: bool, progress: bool, warmup: list, runner) -> Render:
     from lightcuts import __version__
     from lightcuts.api.passes import render_passes
-    from lightcuts.commands.common import progress_bar, render_settings
+    from lightcuts.commands.common import progress_bar
     from lightcuts.commands.plan import tree_meta
     from lightcuts.commands.warmup import finish_warmup, start_render_warmup
+    from lightcuts.render.registry import make_integrator
     from lightcuts.report.images import relative_error
 
     t0 = time.perf_counter()
@@ -145,7 +150,6 @@ def _run(cfg, plan, source, reference: bool, progress: bool, warmup: list, runne
     t_build = time.perf_counter() - t0
     used = tree_meta(trees)
 
-    common = render_settings(cfg, scene.camera, envmap)
     # The wait for numba (the child compiling the render kernel, then loading it) is reported on its own.
     wait = []
 
@@ -209,7 +213,9 @@ def _run(cfg, plan, source, reference: bool, progress: bool, warmup: list, runne
     elif reference:
         with progress_bar(rows, f"{cfg.name}: reference", not progress) as bar:
             t0 = time.perf_counter()
-            ref = plan.integrator.trait("reference")(scene, caster, light_sets, progress=bar.update, **common)
+            ref = make_integrator(cfg, plan.integrator).reference().render(
+                scene, caster, light_sets, None, envmap=envmap, seed=cfg.seed, crop=cfg.render.crop,
+                progress=bar.update)
             t_ref = time.perf_counter() - t0
     if reference:
         ref_image = ref.image

@@ -107,7 +107,7 @@ def scene_rays(cfg, plan) -> dict:
     rays start at the eye rays' hits): eye (org, dirs), shadow-image eye rays and shadow rays."""
     from lightcuts.accel.registry import make_caster
     from lightcuts.render.camera import eye_rays
-    from lightcuts.render.integrator import shadow_ray_offset
+    from lightcuts.render.driver import shadow_ray_offset
 
     scene = plan.scene()
     cam = scene.camera

@@ -24,54 +24,29 @@ def progress_bar(total: int, desc: str, disable: bool = False, unit: str = "row"
                 dynamic_ncols=True)
 
 
-def render_settings(cfg, camera, envmap=None) -> dict:
-    """The keyword arguments of ``render_image`` / ``render_reference`` that the config sets (all but
-    eps and max_cut, which the reference does not take)."""
-    return dict(camera=camera, spp=cfg.render.spp, envmap=envmap, seed=cfg.seed, crop=cfg.render.crop,
-                clamp=cfg.render.clamp.enabled, clamp_min_distance=cfg.render.clamp.min_distance,
-                aperture=cfg.camera.aperture, focus_distance=cfg.camera.focus_distance)
-
-
-def image_settings(cfg, camera, envmap, integrator) -> dict:
-    """:func:`render_settings` and, for an integrator with the ``converging`` trait, the config's
-    ``render.compensation``, ``render.representatives`` and ``render.continuation_rays``: every
-    keyword of the image's ``integrator.obj`` call but eps, max_cut, progress and the integrator's
-    own parameters."""
-    settings = render_settings(cfg, camera, envmap)
-    if integrator.trait("converging", False):
-        settings.update(compensation=cfg.render.compensation, representatives=cfg.render.representatives,
-                        continuation_rays=cfg.render.continuation_rays)
-    return settings
-
-
 def render_timed(cfg, scene, caster, lights: dict, trees: dict, envmap=None, desc: str = "lightcuts",
                  no_progress: bool = False, integrator=None, load: bool = True):
     """The config's image: ``(result, seconds, load_seconds)``. The render kernel is loaded (or
     compiled) on one pixel first, untimed in ``seconds`` (its time is ``load_seconds``), so that
     ``seconds`` measures rendering; a progress bar ``desc`` counts rows. ``integrator``: the plan's
-    resolved ``render.integrator`` (else resolved here); load False skips the one-pixel render (the
-    kernel is loaded already; load_seconds is then 0). The image uses ``cfg.seed`` and, for an
-    integrator with the ``converging`` trait, ``render.compensation``, ``render.continuation_rays``
-    and ``render.representatives``."""
+    resolved ``render.integrator`` (else resolved here), built from the config's settings
+    (lightcuts.render.registry.make_integrator); load False skips the one-pixel render (the kernel
+    is loaded already; load_seconds is then 0). The image uses ``cfg.seed`` and ``render.crop``."""
     import time
 
-    from lightcuts.render.integrators import INTEGRATORS
+    from lightcuts.render.registry import make_integrator
 
-    if integrator is None:
-        integrator = INTEGRATORS.resolve(cfg.render.integrator, "render.integrator")
-    render_image = integrator.obj
-    settings = image_settings(cfg, scene.camera, envmap, integrator)
+    integ = make_integrator(cfg, integrator)
     crop = cfg.render.crop
     x0, y0 = (0, 0) if crop is None else crop[:2]
     rows = scene.camera.height if crop is None else crop[3] - crop[1]
     t0 = time.perf_counter()
     if load:
-        render_image(scene, caster, lights, trees, eps=cfg.render.eps, max_cut=cfg.render.max_cut,
-                     **{**settings, "crop": (x0, y0, x0 + 1, y0 + 1)}, **integrator.params)
+        integ.render(scene, caster, lights, trees, envmap=envmap, seed=cfg.seed, crop=(x0, y0, x0 + 1, y0 + 1))
     load = time.perf_counter() - t0 if load else 0.0
     with progress_bar(rows, desc, no_progress) as bar:
         t0 = time.perf_counter()
-        result = render_image(scene, caster, lights, trees, eps=cfg.render.eps, max_cut=cfg.render.max_cut,
-                              progress=bar.update, **settings, **integrator.params)
+        result = integ.render(scene, caster, lights, trees, envmap=envmap, seed=cfg.seed, crop=crop,
+                              progress=bar.update)
         seconds = time.perf_counter() - t0
     return result, seconds, load

@@ -81,7 +81,7 @@ def plan_run(cfg: RunConfig, *, render: bool = False, tree: TreeSpec | None = No
     render : the run renders, so the caster must be callable from the render kernels
     tree : an already resolved TreeSpec (e.g. from command-line options) instead of the config's
     """
-    from lightcuts.render.integrators import INTEGRATORS
+    from lightcuts.render.registry import INTEGRATORS, make_integrator
     from lightcuts.scene.registry import resolve_scene
 
     scene_type = resolve_scene(cfg.scene)
@@ -113,6 +113,8 @@ def plan_run(cfg: RunConfig, *, render: bool = False, tree: TreeSpec | None = No
             converging = [e.name for e in INTEGRATORS.entries() if e.trait("converging", False)]
             raise LightcutsError(f"render.{key}: integrator {integrator.name!r} does not support it; "
                                  f"use render.integrator: {' or '.join(converging)}")
+    if render:
+        make_integrator(cfg, integrator)  # the integrator checks the settings it takes
     return Plan(cfg, tree, caster, scene_type, integrator)
 
 

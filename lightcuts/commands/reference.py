@@ -3,7 +3,7 @@
 The path tracer (``--renderer``) is Mitsuba 3's (default; an independent renderer, the optional
 extra ``pip install 'lightcuts[mitsuba]'``: without it the command stops with one line naming
 that command, exit status 2, before any work; Phong is approximated there) or lightcuts' own
-(:mod:`lightcuts.render.pathtrace`: the exact BRDF, emitting triangles only, every bounce). The
+(:mod:`lightcuts.render.path`: the exact BRDF, emitting triangles only, every bounce). The
 lightcuts side is rendered here from the same config (the plan's stages, as ``lightcuts render``
 does: all ``render.passes`` passes, with ``render.compensation`` and ``render.representatives`` as
 set), so both images come from the one config and its ``--set`` overrides; an existing
@@ -53,7 +53,7 @@ def add_parser(sub) -> None:
     p.add_argument("--max-depth", type=int, default=-1, help="path length limit of the path tracer (-1: none)")
     p.add_argument("--renderer", choices=("mitsuba", "lightcuts"), default="mitsuba",
                    help="the path tracer: Mitsuba 3 (independent; Phong approximated) or lightcuts' own "
-                        "(lightcuts.render.pathtrace: the exact BRDF; emitting triangles only)")
+                        "(lightcuts.render.path: the exact BRDF; emitting triangles only)")
     study = p.add_mutually_exclusive_group()
     study.add_argument("--curve", action="store_true",
                        help="error against time: lightcuts passes 1, 2, 4, ... --passes and the path tracer "

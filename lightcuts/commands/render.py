@@ -45,7 +45,7 @@ def run_render(args) -> dict:
     cfg = load_config(args.config, args.overrides)  # every config error surfaces here, before any work
     plan = plan_run(cfg, render=True)
     if args.reference:
-        check_reference(cfg)
+        check_reference(cfg, plan.integrator)
     out_dir = check_output_dir(Path(args.out) if args.out else Path("renders") / cfg.name,
                                "--out" if args.out else "name")
     spec = cluster_spec(args)

@@ -37,16 +37,15 @@ def tile_task(token, cfg, scene, envmap, lights, trees, window, reference: bool)
     """On a worker: the RenderResult of the crop window ``window`` of the run's image (with
     ``reference``, of the all-lights reference), as a local render computes those pixels."""
     def body(run):
-        from lightcuts.commands.common import image_settings, render_settings
+        from lightcuts.render.registry import make_integrator
 
-        integ = run.plan.integrator
-        forest = {"forest": run.forest(lights, None if reference else trees)} if integ.trait("forest", False) else {}
+        integ = make_integrator(cfg, run.plan.integrator)
+        used = None if reference else trees
         if reference:
-            settings = {**render_settings(cfg, run.scene.camera, envmap), "crop": window, **forest}
-            return integ.trait("reference")(run.scene, run.caster, lights, **settings)
-        settings = {**image_settings(cfg, run.scene.camera, envmap, integ), "crop": window, **forest}
-        return integ.obj(run.scene, run.caster, lights, trees, eps=cfg.render.eps, max_cut=cfg.render.max_cut,
-                         **settings, **integ.params)
+            integ = integ.reference()
+        forest = run.forest(lights, used) if run.plan.integrator.trait("forest", False) else None
+        return integ.render(run.scene, run.caster, lights, used, forest=forest, envmap=envmap, seed=cfg.seed,
+                            crop=window)
 
     result, info = in_run(token, cfg, scene, envmap, body)
     return {**info, "window": window, "result": result}

@@ -40,13 +40,11 @@ def _spec(names):
 def reference_task(token, cfg, scene, envmap, lights, pixels) -> dict:
     """On a worker: the all-lights reference of the pixels ``pixels`` ((K, 2) int64)."""
     def body(run):
-        from lightcuts.commands.common import render_settings
+        from lightcuts.render.registry import make_integrator
 
-        integ = run.plan.integrator
-        settings = {**render_settings(cfg, run.scene.camera, envmap), "crop": None}
-        if integ.trait("forest", False):
-            settings["forest"] = run.forest(lights, None)
-        ref = integ.trait("reference")(run.scene, run.caster, lights, pixels=pixels, **settings)
+        forest = run.forest(lights, None) if run.plan.integrator.trait("forest", False) else None
+        ref = make_integrator(cfg, run.plan.integrator).reference().render(
+            run.scene, run.caster, lights, None, forest=forest, envmap=envmap, seed=cfg.seed, pixels=pixels)
         return {"image": ref.image[:, 0], "shadow_rays": int(ref.shadow_rays)}
 
     value, info = in_run(token, cfg, scene, envmap, body)

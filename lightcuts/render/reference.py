@@ -1,7 +1,7 @@
 r"""The brute-force reference: every light at every receiver, one shadow ray per light.
 
 The same shading as the lightcut (lightcuts.render.shading, the same shadow rays, clamping and eye
-rays): only the sum over lights differs. ``render_reference`` (lightcuts.render.integrator) runs this
+rays): only the sum over lights differs. ``render_reference`` (lightcuts.render.lightcut) runs this
 instead of the cut, so a lightcuts image and its reference differ only by the cut's approximation.
 """
 

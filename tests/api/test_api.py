@@ -133,7 +133,7 @@ def test_import_lightcuts_loads_no_stage():
 
 
 def test_render_is_the_stage_package_and_the_api_function():
-    import lightcuts.render.integrator
+    import lightcuts.render.lightcut
 
-    assert lightcuts.render.integrator.render_image is not None  # still the package
+    assert lightcuts.render.lightcut.render_image is not None  # still the package
     assert callable(lightcuts.render) and lightcuts.render.__name__ == "lightcuts.render"

@@ -462,12 +462,12 @@ def test_output_set_replaces_old_folder_whole(workdir, capsys):
 
 
 _MARKED = """
-import sys, lightcuts.render.integrator as r
-fn = r.render_image
+import sys, lightcuts.render.registry as r
+fn = r.Integrator.render
 def marked(*a, **k):
     print("MARK", file=sys.stderr, flush=True)
     return fn(*a, **k)
-r.render_image = marked
+r.Integrator.render = marked
 from lightcuts.cli import main
 sys.exit(main(sys.argv[1:]))
 """

@@ -37,6 +37,22 @@ def test_converging_run_against_the_exact_path_tracer(tmp_path):
                                                       "report.json"]
 
 
+def test_the_path_integrator_renders_the_reference_commands_path_image(tmp_path):
+    """``lightcuts render`` with ``render.integrator: path`` and ``lightcuts reference --renderer
+    lightcuts`` at the same seed and samples per pixel give the same image file, byte for byte:
+    one path tracer, whichever command runs it."""
+    common = ["--no-progress", "--set", "seed=7", "--set", "camera.resolution=[24,20]", "--set", "render.crop=[2,3,22,17]",
+              *SMALL]
+    assert _cli(["reference", ROOT / "configs/cornell.yaml", "--renderer", "lightcuts", "--spp", 8,
+                 "--out", tmp_path / "ref", *common]) == 0
+    assert _cli(["render", ROOT / "configs/cornell.yaml", "--set", "render.integrator=path", "--set", "render.spp=8",
+                 "--out", tmp_path / "render", *common]) == 0
+    assert (tmp_path / "render" / "image.exr").read_bytes() == (tmp_path / "ref" / "path.exr").read_bytes()
+    r = json.loads((tmp_path / "render" / "report.json").read_text())
+    assert r["cut_size_unit"] == "path vertices per eye ray" and r["resolution"] == [20, 14]
+    assert 1 <= r["cut_size_mean"] <= 64 and r["shadow_rays_per_pixel"] > 0
+
+
 @pytest.mark.parametrize("config, argv, message", [
     ("sun-env.yaml", [], "--renderer lightcuts: its path tracer renders emitting triangles"),
     ("cornell.yaml", ["--integrator", "direct"], "--integrator direct needs --renderer mitsuba"),

@@ -33,6 +33,8 @@ CONFIGS = {"cornell": ("cornell.yaml", SMALL),
            "kitchen": ("kitchen.yaml", {**SMALL, "scene.procedural.triangles": "20000"}),
            "cornell-multidimensional": ("cornell.yaml", {**SMALL, "render.spp": "4",
                                                          "render.integrator": "multidimensional"}),
+           "cornell-path": ("cornell.yaml", {**SMALL, "render.spp": "4", "render.passes": "2",
+                                             "render.integrator": "{type: path, max_depth: 8}"}),
            "kitchen-passes": ("kitchen.yaml", {**SMALL, "scene.procedural.triangles": "20000", "render.passes": "3",
                                                 "render.compensation": "true"}),
            "kitchen-slow": ("kitchen.yaml", {**SMALL, "scene.procedural.triangles": "20000",
@@ -86,7 +88,7 @@ def same_pixels(a, b):
 
 
 @SPAWNS
-@pytest.mark.parametrize("name", ["cornell", "kitchen", "cornell-multidimensional"])
+@pytest.mark.parametrize("name", ["cornell", "kitchen", "cornell-multidimensional", "cornell-path"])
 def test_tiles_give_the_local_bytes_whatever_their_size(cluster, name):
     from lightcuts.distributed.worker import runs
 

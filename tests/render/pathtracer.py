@@ -21,7 +21,7 @@ from lightcuts.accel.kernel_api import intersect, new_scratch
 from lightcuts.hashing import mix64
 from lightcuts.parallel import next_task, on_counter
 from lightcuts.render.camera import CAM_POSITION, camera_params, eye_ray, strata
-from lightcuts.render.integrator import shadow_ray_offset
+from lightcuts.render.driver import shadow_ray_offset
 
 MAX_VERTICES = 64
 

@@ -19,7 +19,7 @@ from lightcuts.api.passes import pass_seed
 from lightcuts.lights.direct import direct_lights
 from lightcuts.lights.indirect import indirect_lights
 from lightcuts.lights.lightset import LUMINANCE, LightSet
-from lightcuts.render.integrator import render_image, render_reference
+from lightcuts.render.lightcut import render_image, render_reference
 from lightcuts.scene.cornell import cornell_box
 from lightcuts.scene.scene import Camera, Scene
 from lightcuts.trees.build import build_tree
@@ -170,10 +170,10 @@ def test_vpls_and_the_continuation_partition_the_paths(glossy_box):
 
 
 def test_the_exact_path_tracer_agrees_with_the_oracle(glossy_box, oracle_furnaces):
-    """lightcuts.render.pathtrace (next-event estimation and BRDF draws with MIS) against the
+    """lightcuts.render.path (next-event estimation and BRDF draws with MIS) against the
     brute-force oracle on the glossy room (five regions within 3 standard errors) and the diffuse
     furnace's exact radiance (within 0.5%)."""
-    from lightcuts.render.pathtrace import path_trace as exact
+    from lightcuts.render.path import path_trace as exact
 
     scene, caster, batches = glossy_box
     truth = regions(batches)

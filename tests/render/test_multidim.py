@@ -15,7 +15,7 @@ from lightcuts.lights.lightset import LUMINANCE, LightSet
 from lightcuts.render.bounds import DIRECTIONAL, ORIENTED
 from lightcuts.render.camera import camera_params, eye_ray, lens_ray, strata
 from lightcuts.render.forest import LF_POS, NK_LEFT, NK_REP, NK_RIGHT, build_forest
-from lightcuts.render.integrator import render_image
+from lightcuts.render.lightcut import render_image
 from lightcuts.render.multidim import render_multidimensional, render_multidimensional_reference
 from lightcuts.render.multidim.gather import (GP_EXP, GP_NRM, GP_POS, GP_RD, GP_REFL, GP_RS, GP_W, GP_WIDTH)
 from lightcuts.render.multidim.gather_tree import (GK_LEFT, GK_REP, GK_RIGHT, GN_EMAX, GN_EMIN, GN_HI, GN_LO,
@@ -314,7 +314,7 @@ def test_warm_kernels_compiles_the_specialisation_renders_use(cornell):
     # The commands compile the integrator's render kernel in a child process through its ``kernels``
     # module's warm_kernels (no lights, another scene): the real renders must find that specialisation.
     from lightcuts.commands.warmup import is_cached
-    from lightcuts.render.integrators import INTEGRATORS
+    from lightcuts.render.registry import INTEGRATORS
     from lightcuts.render.multidim import render as md_render
 
     assert INTEGRATORS.entry("multidimensional").trait("kernels") == md_render.__name__

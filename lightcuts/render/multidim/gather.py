@@ -2,20 +2,18 @@ r"""Gather points of one pixel: the hits of its ``spp`` eye rays (pixel strata, 
 
 A gather point is one eye-ray hit that reflects light: its row in ``gp`` ((spp, GP_WIDTH) float64
 scratch) holds position, unit shading normal N (facing the eye), mirror direction R of wo,
-RGB rho_d and rho_s, Phong exponent and weight 1 / spp (its share of the pixel). Misses (the
-environment map) and the fronts of emitters (their emitted radiance) add radiance directly, as
-lightcuts.render.integrator does for each eye ray; the front of an emitter is a gather point too
-(it reflects light), its back is black and is none.
+RGB rho_d and rho_s, Phong exponent and weight 1 / spp (its share of the pixel). Each eye ray starts
+as every integrator's does (lightcuts.render.eye): misses (the environment map) and the fronts of
+emitters (their emitted radiance) add radiance directly; the front of an emitter is a gather point
+too (it reflects light), its back is black and is none.
 """
 
 from __future__ import annotations
 
-import numpy as np
 from numba import njit
 
-from lightcuts.accel.kernel_api import intersect
-from lightcuts.lights.environment import envmap_radiance
 from lightcuts.render.camera import lens_ray
+from lightcuts.render.eye import eye_hit
 from lightcuts.render.shading import facing_normal, reflect
 from lightcuts.scene.textures import albedo_at
 
@@ -41,22 +39,14 @@ def pixel_gather(cdata, buf, cam, seed, spp, sx, sy, px, py, aperture, focus, fa
     w = 1.0 / spp
     for s in range(spp):
         o0, o1, o2, d0, d1, d2 = lens_ray(cam, seed, px, py, s, sx, sy, aperture, focus)
-        t, prim = intersect(cdata, buf, o0, o1, o2, d0, d1, d2, 0.0, np.inf)
+        t, prim, e0, e1, e2 = eye_hit(cdata, buf, o0, o1, o2, d0, d1, d2, face_normal, emission, env_pixels,
+                                      env_rotation, env_scale)
+        a0 += e0
+        a1 += e1
+        a2 += e2
         if prim < 0:
-            if env_pixels.shape[0] > 0:
-                e0, e1, e2 = envmap_radiance(env_pixels, env_rotation, env_scale, d0, d1, d2)
-                a0 += e0
-                a1 += e1
-                a2 += e2
             continue
         f0, f1, f2 = face_normal[prim, 0], face_normal[prim, 1], face_normal[prim, 2]
-        e0, e1, e2 = emission[prim, 0], emission[prim, 1], emission[prim, 2]
-        if e0 > 0.0 or e1 > 0.0 or e2 > 0.0:
-            if f0 * d0 + f1 * d1 + f2 * d2 >= 0.0:
-                continue  # the back of an emitter is black
-            a0 += e0
-            a1 += e1
-            a2 += e2
         n0, n1, n2 = facing_normal(f0, f1, f2, -d0, -d1, -d2)
         r0, r1, r2 = reflect(-d0, -d1, -d2, n0, n1, n2)
         row = gp[n]

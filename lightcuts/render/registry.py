@@ -1,0 +1,165 @@
+r"""The render integrators (see :mod:`lightcuts.registry`): how each pixel's radiance is computed.
+
+An integrator is an object built once from its settings (Mitsuba's plugin shape): the constructor
+takes the config's render settings and the entry's own parameters and checks them (one-line
+LightcutsError naming the config key), and :meth:`Integrator.render` renders a window of the image
+(a crop window or a pixel list) from the scene, the ray caster, the lights and trees (or their light
+forest, made once for many windows: :meth:`Integrator.forest`) and the per-run inputs (camera,
+environment map, seed, progress). :meth:`Integrator.reference` is its brute-force counterpart over
+the same samples, against which its errors are measured. Every integrator renders through the one
+image driver (lightcuts.render.driver), supplying its band kernel call (:meth:`Integrator.band_kernel`).
+
+The registry's entries are the integrator classes, each beside its kernels (its module, listed in
+``builtins``, registers it when imported). The config names one as ``render.integrator: NAME`` or
+``{type: NAME, param: value, ...}`` (default ``lightcuts``); the plan step resolves it and builds it
+(:func:`make_integrator`) before any work, and the commands build it the same way. A class declares
+(:func:`lightcuts.registry.declare`) its own parameters and its traits: ``cut_unit`` (what its cut
+sizes count, as report.json names it), ``lens`` (it renders a thin lens: the plan refuses
+``camera.aperture > 0`` otherwise), ``converging`` (it takes ``render.compensation``,
+``render.representatives`` and ``render.continuation_rays``; the plan refuses them otherwise),
+``reference`` (it has a brute-force reference: ``--reference`` and compare's errors), ``forest`` (it
+renders from the light forest of the lights and trees, :meth:`Integrator.forest`, which a cluster's
+worker makes once for all its tiles; compare, whose rows differ by their trees, refuses an
+integrator without it) and ``kernels``: the module whose ``_render_band`` kernel its renders use and
+whose ``warm_kernels()`` compiles it, which the commands compile in a second process while the
+lights and trees are made (lightcuts.commands.warmup). Adding an integrator is a subclass of
+:class:`Integrator` registered with ``INTEGRATORS.register`` (or an entry point in group
+``lightcuts.integrators`` naming the class).
+
+Entries: ``lightcuts``, a lightcut per eye ray through every light tree (Walter et al. 2005,
+lightcuts.render.lightcut); ``multidimensional``, one cut per pixel through the product of a gather
+tree over the pixel's eye-ray hits and the light trees (Walter et al. 2006,
+lightcuts.render.multidim); ``path``, a path tracer with lightcuts' own BRDF over the scene's
+emitting triangles (lightcuts.render.path), which uses no lights or trees.
+"""
+
+from __future__ import annotations
+
+import math
+
+from lightcuts.errors import LightcutsError
+from lightcuts.registry import Registry, declaration
+from lightcuts.render import MAX_CUT
+
+INTEGRATORS: Registry = Registry("integrator", group="lightcuts.integrators",
+                                 builtins=("lightcuts.render.lightcut", "lightcuts.render.multidim.render",
+                                           "lightcuts.render.path"))
+
+
+def check_count(value, key: str, hi: int | None = None) -> int:
+    """``value`` as an int from 1 (to ``hi``); LightcutsError naming the config key ``key`` otherwise."""
+    if isinstance(value, bool) or int(value) != value or value < 1 or (hi is not None and value > hi):
+        raise LightcutsError(f"{key}: {value} must be " + (f"an integer from 1 to {hi}" if hi is not None
+                                                           else "a positive integer"))
+    return int(value)
+
+
+def check_non_negative(value, key: str) -> float:
+    """``value`` as a finite float >= 0; LightcutsError naming the config key ``key`` otherwise."""
+    if not (value >= 0 and math.isfinite(value)):
+        raise LightcutsError(f"{key}: {value} must be a finite number >= 0")
+    return float(value)
+
+
+class Integrator:
+    """An integrator (module docstring): its settings, checked when made, and its render.
+
+    spp : eye rays per pixel (stratified, jittered: lightcuts.render.camera). ``eps``, ``max_cut``
+    (the bound of a pixel's cut per eye ray, in its ``cut_unit``) and ``brute_force`` (it is a
+    reference) are what its RenderResults record.
+    """
+
+    eps = 0.0
+    max_cut = 0
+    brute_force = False
+
+    def __init__(self, *, spp: int = 1):
+        self.spp = check_count(spp, "render.spp")
+
+    @classmethod
+    def settings(cls, cfg) -> dict:
+        """The constructor's keyword arguments that the config ``cfg`` sets (not the entry's own
+        parameters); LightcutsError naming the key if the config asks for something it cannot do."""
+        return {"spp": cfg.render.spp}
+
+    @classmethod
+    def from_config(cls, cfg, **params) -> "Integrator":
+        """The integrator of ``cfg``'s settings and the entry's resolved parameters ``params``."""
+        return cls(**cls.settings(cfg), **params)
+
+    def param(self, name: str, value):
+        """``value`` of the entry's own parameter ``name`` checked against its declared Param (key
+        ``render.integrator.<name>``)."""
+        return declaration(type(self))["params"][name].check(value, f"render.integrator.{name}")
+
+    def forest(self, lights: dict, trees: dict | None):
+        """The light forest its renders take (lightcuts.render.forest.build_forest of the lights and
+        trees; a reference's of the lights alone), or None if it uses none."""
+        from lightcuts.render.forest import build_forest
+
+        return build_forest(lights, None if self.brute_force else trees)
+
+    def reference(self) -> "Integrator":
+        """The brute-force integrator over the same samples (its errors are measured against it)."""
+        raise LightcutsError(f"render.integrator: {type(self).__name__} has no brute-force reference")
+
+    def band_kernel(self, frame):
+        """Its band kernel call (lightcuts.render.driver.Band) for the driver's ``frame``
+        (lightcuts.render.driver.Frame)."""
+        raise NotImplementedError
+
+    def render(self, scene, caster, lights: dict, trees: dict | None = None, *, forest=None, camera=None,
+               envmap=None, seed: int = 0, crop=None, pixels=None, progress=None):
+        """Render the window ``crop`` of the image (or the pixels ``pixels``): a
+        lightcuts.render.driver.RenderResult.
+
+        scene : lightcuts.scene.Scene; caster : a kernel-callable ray caster over it (open during the
+        call); lights : {type: LightSet}; trees : {type: LightTree}, one per light set (unused by a
+        reference); forest : :meth:`forest` of those, made once for several calls (e.g. the tiles of
+        one image), None: made here; camera : lightcuts.scene.Camera (default ``scene.camera``);
+        envmap : lightcuts.lights.environment.EnvironmentMap seen by eye rays that miss, or None
+        (black); seed : the eye rays' seed (and the stochastic choices'); crop : (x0, y0, x1, y1)
+        pixels of the image, or None (all); pixels : (K, 2) int (x, y) to render instead of a window
+        (the result's arrays are then (K, 1, ...), with the values of those pixels in a whole-image
+        render); progress : called with the number of rows finished after each band.
+        LightcutsError naming the key for bad inputs.
+        """
+        from lightcuts.render.driver import render_window
+
+        return render_window(self, scene, caster, lights, trees, forest=forest, camera=camera, envmap=envmap,
+                             seed=seed, crop=crop, pixels=pixels, progress=progress)
+
+
+class CutIntegrator(Integrator):
+    """An integrator that cuts light trees: eps : relative error threshold of a cut (0: refine until
+    every node is exact); max_cut : largest cut per eye ray (1 to MAX_CUT); clamp,
+    clamp_min_distance : clamping of indirect VPLs at ``clamp_min_distance * scene diagonal``;
+    visibility : False casts no shadow rays (every light visible: unshadowed images, and the cost of
+    the cut without the caster's share, benchmarks/bench_render.py)."""
+
+    def __init__(self, *, spp: int = 1, eps: float = 0.02, max_cut: int = 1000, clamp: bool = True,
+                 clamp_min_distance: float = 0.05, visibility: bool = True):
+        super().__init__(spp=spp)
+        self.eps = check_non_negative(eps, "render.eps")
+        self.max_cut = check_count(max_cut, "render.max_cut", MAX_CUT)
+        self.clamp = bool(clamp)
+        self.clamp_min_distance = check_non_negative(clamp_min_distance, "render.clamp.min_distance")
+        self.visibility = bool(visibility)
+
+    @classmethod
+    def settings(cls, cfg) -> dict:
+        r = cfg.render
+        return {**super().settings(cfg), "eps": r.eps, "max_cut": r.max_cut, "clamp": r.clamp.enabled,
+                "clamp_min_distance": r.clamp.min_distance}
+
+    def clamp_d2(self, scene) -> float:
+        """The squared clamping distance in the scene (0: no clamping)."""
+        return float((self.clamp_min_distance * scene.diagonal) ** 2 if self.clamp else 0.0)
+
+
+def make_integrator(cfg, integrator=None) -> Integrator:
+    """The integrator of the run ``cfg`` (a RunConfig): the entry ``integrator`` (a Resolved, e.g. the
+    plan's, or a spec; None: ``cfg.render.integrator``) built from the config's settings and its
+    resolved parameters. LightcutsError with one line naming the config key."""
+    resolved = INTEGRATORS.resolve(cfg.render.integrator if integrator is None else integrator, "render.integrator")
+    return resolved.obj.from_config(cfg, **resolved.params)
