@@ -10,7 +10,7 @@ exact BRDF (lightcuts.render.path):
 * ``cost``: one compensated pass over one plain pass (lights, trees and image; median of
   ``--repeats`` interleaved pairs, plain first) and the render alone;
 * with ``--curve``: passes 1, 2, 4, ... ``--curve-passes`` of the ``after`` settings and the path tracer
-  at the same times (:func:`lightcuts.api.convergence.error_curve`), the fitted slope of lightcuts' error
+  at the same times (:func:`lightcuts.pipeline.convergence.error_curve`), the fitted slope of lightcuts' error
   against time, and both methods' errors at the curve points nearest 10 s and 60 s.
 
 Prints a table and writes ``benchmarks/results/converging-<renderer>-<representatives>.csv`` (and
@@ -35,21 +35,21 @@ sys.path.insert(0, str(ROOT))
 
 def run(path, overrides):
     from lightcuts.config.schema import load_config
-    from lightcuts.commands.plan import plan_run
+    from lightcuts.pipeline.plan import plan_run
 
     cfg = load_config(path, overrides)
     return cfg, plan_run(cfg, render=True)
 
 
 def passes_image(cfg, plan, scene, envmap):
-    from lightcuts.api.passes import render_passes
+    from lightcuts.pipeline.passes import render_passes
 
     with plan.make_caster(scene) as caster:
         return render_passes(cfg, plan, scene, caster, envmap, progress=False)
 
 
 def main() -> None:
-    from lightcuts.api.convergence import PathTracer, error_curve, long_reference, measures
+    from lightcuts.pipeline.convergence import PathTracer, error_curve, long_reference, measures
     from lightcuts.io import save_csv
 
     p = argparse.ArgumentParser()

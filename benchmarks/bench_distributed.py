@@ -82,7 +82,7 @@ def command_overhead(pairs: int) -> list[dict]:
 
 def prepare(triangles: int, resolution=FRAME):
     """(cfg, plan, scene, envmap, lights, trees, client seconds) of the kitchen at that size."""
-    from lightcuts.commands.plan import plan_run
+    from lightcuts.pipeline.plan import plan_run
     from lightcuts.config import load_config
 
     cfg = load_config(KITCHEN, [f"scene.procedural.triangles={triangles}",

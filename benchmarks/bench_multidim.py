@@ -16,7 +16,7 @@ import numpy as np
 
 
 def main() -> None:
-    from lightcuts.commands.plan import plan_run
+    from lightcuts.pipeline.plan import plan_run
     from lightcuts.config.schema import load_config
     from lightcuts.lights.lightset import LUMINANCE
     from lightcuts.render.lightcut import render_image

@@ -39,7 +39,7 @@ _SIGNALS = {signal.SIGINT: (130, "interrupted"), signal.SIGTERM: (143, "terminat
 
 
 def _run(args) -> int:
-    from lightcuts.commands.warmup import announce_compiles
+    from lightcuts.pipeline.warmup import announce_compiles
 
     announce_compiles()
     try:

@@ -18,7 +18,7 @@ import pytest
 import lightcuts.registry
 from lightcuts.cli import main
 from lightcuts.commands.plugins import kinds
-from lightcuts.commands.warmup import NOTICE
+from lightcuts.pipeline.warmup import NOTICE
 from lightcuts.errors import LightcutsError
 from lightcuts.plugin_docs import (COMPUTED, Kind, format_value, kind_markdown, kind_text, param_range, shown_traits,
                                    update_blocks)

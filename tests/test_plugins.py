@@ -243,7 +243,7 @@ def test_scene_type_contract(name, tmp_path):
 @pytest.fixture(scope="module")
 def small_cornell():
     """A 12 x 10 Cornell box run: its scene, caster, lights and trees, made by the plan's stages."""
-    from lightcuts.commands.plan import plan_run
+    from lightcuts.pipeline.plan import plan_run
 
     cfg = lightcuts.load_config(ROOT / "configs" / "cornell.yaml", **{"camera.resolution": [12, 10],
                                                                       "lights.direct.count": 64,
@@ -361,7 +361,7 @@ def test_undeclared_parameter_one_line_before_any_work(tmp_path, command, extra,
     ("{builder: {type: nope}}", "tree.builder: unknown builder 'nope'"),
 ])
 def test_builder_mapping_errors_name_the_key(tmp_path, tree_section, message):
-    from lightcuts.commands.plan import plan_run
+    from lightcuts.pipeline.plan import plan_run
     from lightcuts.config import load_config
 
     (tmp_path / "run.yaml").write_text(CONFIG + f"tree: {tree_section}\n")
@@ -387,7 +387,7 @@ def test_builder_mapping_and_flat_form_give_the_same_tree(tmp_path):
 
 
 def test_compare_rows_come_from_builder_traits():
-    from lightcuts.api.comparing import default_builders
+    from lightcuts.pipeline.comparing import default_builders
 
     rows = default_builders()
     assert rows == ["agglomerative-heap", "agglomerative", "divisive-6d", "divisive-3d", "saoh"]
@@ -398,7 +398,7 @@ def test_compare_rows_come_from_builder_traits():
 
 
 def test_plan_records_every_plugin(tmp_path):
-    from lightcuts.commands.plan import plan_run
+    from lightcuts.pipeline.plan import plan_run
     from lightcuts.config import load_config
 
     (tmp_path / "run.yaml").write_text("scene: {procedural: {type: rooms, rooms: 2}}\n"

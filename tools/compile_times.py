@@ -48,7 +48,7 @@ def main() -> None:
                 stack[-1][2] += dt
 
     event.register("numba:compile", Timer())
-    import lightcuts.commands.warmup as warmup
+    import lightcuts.pipeline.warmup as warmup
     from lightcuts.cli import main as cli
 
     warmup.start_render_warmup = lambda *a: None  # every compile in this process, where it is seen

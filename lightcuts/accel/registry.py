@@ -9,7 +9,7 @@ A caster entry's object is a class (or factory) taking ``(vertices (V, 3), faces
   tracer, the renderer) can cast its rays; the plan step refuses other casters for rendering;
 - ``device``: those :class:`~lightcuts.accel.kernel_api.DeviceFunctions`;
 - ``warm_render_kernel``: the commands compile the render kernel for this caster in a second
-  process while they build lights and trees (lightcuts.commands.warmup).
+  process while they build lights and trees (lightcuts.pipeline.warmup).
 
 Outside casters register with :func:`register_caster` or through the entry-point group
 ``lightcuts.ray_casters`` (their object declared with :func:`lightcuts.registry.declare`, traits as above).

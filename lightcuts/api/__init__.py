@@ -17,8 +17,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from lightcuts.api.comparing import DEFAULT_PIXELS, Comparison
-from lightcuts.api.rendering import Render
+from lightcuts.pipeline.comparing import DEFAULT_PIXELS, Comparison
+from lightcuts.pipeline.rendering import Render
 
 __all__ = ["load_config", "render", "compare", "Render", "Comparison"]
 
@@ -105,8 +105,8 @@ def render(config, *, reference: bool = False, progress: bool = True) -> Render:
         error in the report
     progress : progress bars on stderr
     """
-    from lightcuts.api.rendering import render_run
-    from lightcuts.commands.plan import plan_run
+    from lightcuts.pipeline.rendering import render_run
+    from lightcuts.pipeline.plan import plan_run
 
     cfg, source = _config(config)
     reference, progress = _flag(reference, "reference"), _flag(progress, "progress")
@@ -129,8 +129,8 @@ def compare(config, builders=None, metrics=None, *, pixels: int = DEFAULT_PIXELS
     Returns a :class:`Comparison`: ``.rows`` as table.csv has them, ``.cut_sizes`` and ``.images``
     per row label, ``.report``, ``.save(folder)``.
     """
-    from lightcuts.api.comparing import compare_run, resolve_rows, sample_pixels
-    from lightcuts.commands.plan import plan_run
+    from lightcuts.pipeline.comparing import compare_run, resolve_rows, sample_pixels
+    from lightcuts.pipeline.plan import plan_run
     from lightcuts.io import check_store_dir
     from lightcuts.limits import MAX_PIXELS, MAX_REFERENCE_SPP
     from lightcuts.report.compare_store import RowStore

@@ -23,7 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
-from lightcuts.commands.common import add_set, progress_bar
+from lightcuts.commands.common import add_set
+from lightcuts.pipeline.timing import progress_bar
 from lightcuts.errors import LightcutsError
 from lightcuts.limits import MAX_REPEATS
 
@@ -78,7 +79,7 @@ def resolve_casters(text: str | None) -> list:
 
 
 def run_accel(args) -> dict:
-    from lightcuts.commands.plan import plan_run
+    from lightcuts.pipeline.plan import plan_run
     from lightcuts.config import load_config
     from lightcuts.io import check_output_dir
 
@@ -229,7 +230,7 @@ def _run(args, cfg, plan, entries, out: Path) -> dict:
 
 def _run_sweep(args, cfg, entries, out: Path) -> dict:
     """The 1995 paper's growing scenes: the study at every ``--rooms`` count of a ``rooms`` scene."""
-    from lightcuts.commands.plan import plan_run
+    from lightcuts.pipeline.plan import plan_run
     from lightcuts.config import load_config
     from lightcuts.io import atomic_path, output_set, save_csv, save_json
     from lightcuts.report.accel import format_markdown, format_sweep, plot_sweep

@@ -1,9 +1,8 @@
-"""What the commands share: the ``--set`` option, per-type output names, progress bars."""
+"""What the commands share: the ``--set`` option, per-type output names."""
 
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 
@@ -15,38 +14,3 @@ def add_set(p: argparse.ArgumentParser) -> None:
 def per_type_path(out: Path, typ: str, n_types: int) -> Path:
     """``out`` itself for a single light type, else ``<stem>-<type>.npz`` beside it."""
     return out if n_types == 1 else out.with_name(f"{out.stem}-{typ}{out.suffix or '.npz'}")
-
-
-def progress_bar(total: int, desc: str, disable: bool = False, unit: str = "row"):
-    from tqdm import tqdm
-
-    return tqdm(total=total, desc=desc, unit=unit, disable=disable, file=sys.stderr, leave=False,
-                dynamic_ncols=True)
-
-
-def render_timed(cfg, scene, caster, lights: dict, trees: dict, envmap=None, desc: str = "lightcuts",
-                 no_progress: bool = False, integrator=None, load: bool = True):
-    """The config's image: ``(result, seconds, load_seconds)``. The render kernel is loaded (or
-    compiled) on one pixel first, untimed in ``seconds`` (its time is ``load_seconds``), so that
-    ``seconds`` measures rendering; a progress bar ``desc`` counts rows. ``integrator``: the plan's
-    resolved ``render.integrator`` (else resolved here), built from the config's settings
-    (lightcuts.render.registry.make_integrator); load False skips the one-pixel render (the kernel
-    is loaded already; load_seconds is then 0). The image uses ``cfg.seed`` and ``render.crop``."""
-    import time
-
-    from lightcuts.render.registry import make_integrator
-
-    integ = make_integrator(cfg, integrator)
-    crop = cfg.render.crop
-    x0, y0 = (0, 0) if crop is None else crop[:2]
-    rows = scene.camera.height if crop is None else crop[3] - crop[1]
-    t0 = time.perf_counter()
-    if load:
-        integ.render(scene, caster, lights, trees, envmap=envmap, seed=cfg.seed, crop=(x0, y0, x0 + 1, y0 + 1))
-    load = time.perf_counter() - t0 if load else 0.0
-    with progress_bar(rows, desc, no_progress) as bar:
-        t0 = time.perf_counter()
-        result = integ.render(scene, caster, lights, trees, envmap=envmap, seed=cfg.seed, crop=crop,
-                              progress=bar.update)
-        seconds = time.perf_counter() - t0
-    return result, seconds, load

@@ -17,7 +17,7 @@ they are done (one .npz each, written atomically, with a key of everything they 
 interrupted compare keeps them and the next run with the same config and seed only computes what is
 missing or changed; ``--force`` recomputes everything.
 
-The run itself is :func:`lightcuts.compare`'s (:mod:`lightcuts.api.comparing`: rows, reference,
+The run itself is :func:`lightcuts.compare`'s (:mod:`lightcuts.pipeline.comparing`: rows, reference,
 writer; the store is :mod:`lightcuts.report.compare_store`, the Mitsuba study
 :mod:`lightcuts.mitsuba.study`); this module parses the options, resolves the rows and checks
 ``--diff`` and the output folder before any work, then saves and prints the table. With ``--workers N``
@@ -29,7 +29,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from lightcuts.api.comparing import (ALLOWED, DEFAULT_MITSUBA_SPP, DEFAULT_PIXELS,  # noqa: F401
+from lightcuts.pipeline.comparing import (ALLOWED, DEFAULT_MITSUBA_SPP, DEFAULT_PIXELS,  # noqa: F401
                                      names, resolve_rows, sample_pixels)
 from lightcuts.commands.common import add_set
 from lightcuts.distributed.options import add_cluster_options, cluster_spec
@@ -75,8 +75,8 @@ def run(args) -> int:
 
 def run_compare(args) -> dict:
     """The ``lightcuts compare`` command; returns the report dict (also written to report.json)."""
-    from lightcuts.api.comparing import compare_run, converging_config
-    from lightcuts.commands.plan import plan_run
+    from lightcuts.pipeline.comparing import compare_run, converging_config
+    from lightcuts.pipeline.plan import plan_run
     from lightcuts.config import load_config
     from lightcuts.io import check_output_dir
     from lightcuts.report.compare_store import RowStore

@@ -22,13 +22,13 @@ tracer's name, spp, integrator, max depth, seconds and version, lightcuts' light
 seconds, and whether any Phong material was approximated.
 
 ``--curve`` (path tracing only) instead measures error against time
-(:func:`lightcuts.api.convergence.error_curve`): lightcuts' passes 1, 2, 4, ... ``--passes`` (the
+(:func:`lightcuts.pipeline.convergence.error_curve`): lightcuts' passes 1, 2, 4, ... ``--passes`` (the
 config's converging settings as given) and the path tracer at the same times, both against its long
 render at ``--spp``; it writes ``curve.csv`` (method, passes, spp, seconds, energy ratio, per-pixel
 and 8x8-block median error), ``curve.png`` (both errors against time, log-log) and the fitted
 slopes and per-time verdicts in ``report.json``. ``--split`` writes ``split.csv``: the energy ratio
 with clamping off, each remedy on, diffuse materials and direct light alone
-(:func:`lightcuts.api.convergence.energy_split`; rows with passes use ``--passes``, default 8).
+(:func:`lightcuts.pipeline.convergence.energy_split`; rows with passes use ``--passes``, default 8).
 """
 
 from __future__ import annotations
@@ -76,8 +76,8 @@ def run(args) -> int:
 
 def run_reference(args) -> dict:
     """Run the command as the CLI does; returns the report dict (also written to report.json)."""
-    from lightcuts.api.convergence import PathTracer
-    from lightcuts.commands.plan import plan_run
+    from lightcuts.pipeline.convergence import PathTracer
+    from lightcuts.pipeline.plan import plan_run
     from lightcuts.io import check_output_dir
     from lightcuts.limits import MAX_BOUNCES, MAX_PASSES, MAX_REFERENCE_SPP
 
@@ -112,11 +112,11 @@ def run_reference(args) -> dict:
 
 
 def _study(args, cfg, plan, overrides, out_dir: Path, tracer) -> dict:
-    from lightcuts.commands.plan import plan_run
-    from lightcuts.commands.warmup import finish_warmup
+    from lightcuts.pipeline.plan import plan_run
+    from lightcuts.pipeline.warmup import finish_warmup
 
     if args.split:
-        from lightcuts.api.convergence import energy_split
+        from lightcuts.pipeline.convergence import energy_split
 
         def make_run(extra):
             c = load_config(args.config, list(overrides) + list(extra))
@@ -140,8 +140,8 @@ def _file(tracer) -> str:
 
 def _lightcuts_image(args, cfg, plan, scene, envmap, warmup: list) -> tuple[np.ndarray, dict]:
     """lightcuts' image of the run (all its passes) and its figures (lights, seconds)."""
-    from lightcuts.api.passes import render_passes
-    from lightcuts.commands.warmup import finish_warmup, start_render_warmup
+    from lightcuts.pipeline.passes import render_passes
+    from lightcuts.pipeline.warmup import finish_warmup, start_render_warmup
 
     t0 = time.perf_counter()
     if plan.caster.trait("warm_render_kernel", False):
@@ -221,7 +221,7 @@ def _run(args, cfg, plan, out_dir: Path, warmup: list, tracer) -> dict:
 
 def _run_curve(args, cfg, plan, out_dir: Path, tracer) -> dict:
     from lightcuts import __version__
-    from lightcuts.api.convergence import error_curve, long_reference
+    from lightcuts.pipeline.convergence import error_curve, long_reference
     from lightcuts.io import output_set, save_csv, save_json
     from lightcuts.report.images import write_exr, write_png
     from lightcuts.report.plots import loglog_panels

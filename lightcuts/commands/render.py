@@ -4,7 +4,7 @@ Outputs in ``renders/<name>/`` (or ``--out``), written as one set (:func:`lightc
 ``image.exr`` (linear float RGB), ``image.png`` (sRGB, ``render.exposure`` stops), ``cutsize.png``
 (false-colour cut size per pixel), ``report.json``; with ``--reference`` also ``reference.exr`` and
 ``reference.png``, and the lightcuts-vs-reference error in the report. The run itself is
-:func:`lightcuts.render`'s (:mod:`lightcuts.api.rendering`); this module parses the options, checks the
+:func:`lightcuts.render`'s (:mod:`lightcuts.pipeline.rendering`); this module parses the options, checks the
 output folder before any work, saves and prints the summary line. With ``--workers N`` or
 ``--scheduler ADDRESS`` the image is rendered as tiles on a Dask cluster (:mod:`lightcuts.distributed`),
 the same bytes.
@@ -38,8 +38,8 @@ def run(args) -> int:
 
 def run_render(args) -> dict:
     """Run a render as the CLI does; returns the report dict (also written to report.json)."""
-    from lightcuts.api.rendering import check_reference, render_run
-    from lightcuts.commands.plan import plan_run
+    from lightcuts.pipeline.rendering import check_reference, render_run
+    from lightcuts.pipeline.plan import plan_run
     from lightcuts.io import check_output_dir
 
     cfg = load_config(args.config, args.overrides)  # every config error surfaces here, before any work

@@ -40,7 +40,8 @@ from pathlib import Path
 
 import numpy as np
 
-from lightcuts.commands.common import add_set, progress_bar
+from lightcuts.commands.common import add_set
+from lightcuts.pipeline.timing import progress_bar
 from lightcuts.distributed.options import add_cluster_options, cluster_spec
 from lightcuts.errors import LightcutsError
 from lightcuts.limits import MAX_LIGHTS, MAX_POINTS, MAX_REPEATS, MAX_SPP
@@ -140,7 +141,7 @@ def run_scaling(args) -> list[dict]:
                                  "--scheduler")
 
         return run_gather(args, parse_sizes(args.gather, "--gather", MAX_SPP, "gather points per pixel", "MAX_SPP"))
-    from lightcuts.commands.plan import plan_run
+    from lightcuts.pipeline.plan import plan_run
     from lightcuts.config import load_config
     from lightcuts.io import check_output_dir, output_set, save_csv
     from lightcuts.report.scaling import (CSV_FIELDS, RENDER_CSV_FIELDS, format_render_table, format_table,
@@ -206,7 +207,7 @@ def run_scaling(args) -> list[dict]:
 def point_lights(point_cfg, scene, caster):
     """The oriented VPLs of one light count (``point_cfg``: the config with that
     ``lights.indirect.count``)."""
-    from lightcuts.commands.plan import plan_run
+    from lightcuts.pipeline.plan import plan_run
 
     return plan_run(point_cfg).lights(scene, caster)["oriented"]
 
@@ -230,7 +231,7 @@ def scaling_point(point_cfg, scene, caster, lights, spec, warm: bool, repeats: i
 def _render_stats(cfg, scene, caster, lights, tree) -> dict:
     """Average and largest cut, shadow rays per pixel and render seconds of the config's image
     lit by ``lights`` through ``tree``."""
-    from lightcuts.commands.common import render_timed
+    from lightcuts.pipeline.timing import render_timed
 
     result, seconds, _ = render_timed(cfg, scene, caster, {lights.type: lights}, {lights.type: tree},
                                       no_progress=True)

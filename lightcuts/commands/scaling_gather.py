@@ -6,7 +6,7 @@ The config's own scene, lights (every type it asks for) and trees (its ``tree.bu
 once; for every count G the image is rendered with both integrators: ``lightcuts`` at
 ``render.spp = G`` (a lightcut per eye ray) and ``multidimensional`` with G gather points per pixel
 (the config's ``render.integrator`` parameters if it is multidimensional, else the defaults), each
-after an untimed one-pixel render that loads its kernel (:func:`lightcuts.commands.common.render_timed`).
+after an untimed one-pixel render that loads its kernel (:func:`lightcuts.pipeline.timing.render_timed`).
 Both see the same eye rays, so their images differ only by their cuts' errors. Other settings
 (eps, max_cut, clamping, crop) are the config's; ``render.max_cut`` is the budget per eye ray of
 both (a multidimensional cut over G gather points holds up to max_cut x G pairs).
@@ -50,7 +50,7 @@ def plan_gather(config: str, overrides: list, gathers: list[int]) -> tuple[objec
     """The base plan and [(G, integrator name, plan), ...] for every gather count and integrator,
     each config the base with ``render.spp = G`` and ``render.integrator`` set; LightcutsError
     before any work for a lens or a bad config."""
-    from lightcuts.commands.plan import plan_run
+    from lightcuts.pipeline.plan import plan_run
     from lightcuts.config import load_config
 
     base = plan_run(load_config(config, overrides), render=True)
@@ -71,7 +71,7 @@ def plan_gather(config: str, overrides: list, gathers: list[int]) -> tuple[objec
 def run_gather(args, gathers: list[int]) -> list[dict]:
     """The ``lightcuts scaling --gather`` study (args: config, overrides, out, no_progress); returns
     the rows (also written to ``gather_scaling.csv``)."""
-    from lightcuts.commands.common import progress_bar, render_timed
+    from lightcuts.pipeline.timing import progress_bar, render_timed
     from lightcuts.io import check_output_dir, output_set, save_csv
     from lightcuts.report.images import relative_error
     from lightcuts.report.scaling import GATHER_CSV_FIELDS, format_gather_table, plot_gather_scaling

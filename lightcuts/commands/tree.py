@@ -71,7 +71,7 @@ def run(args) -> int:
             sets[ls.type] = ls
         name = Path(args.lights[0]).stem
     else:
-        from lightcuts.commands.plan import plan_run
+        from lightcuts.pipeline.plan import plan_run
 
         plan = plan_run(cfg, tree=spec)
         sets = plan.lights(plan.scene())

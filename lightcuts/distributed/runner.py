@@ -1,12 +1,12 @@
 """A render on a cluster: the inputs shipped to every worker once, the image as tiles, the further
 passes of a converging render as tasks, the mean summed in pass order here.
 
-:class:`ClusterRunner` is the ``runner`` of :func:`lightcuts.api.rendering.render_run`: the client
+:class:`ClusterRunner` is the ``runner`` of :func:`lightcuts.pipeline.rendering.render_run`: the client
 makes the scene, pass 0's lights and trees as a local run does, then :meth:`ClusterRunner.passes`
 scatters them to every worker (``broadcast=True``: one copy per worker, kept for the run), submits
 passes 1..N-1 as one task each (lights, trees and image on one worker) and then pass 0's image as
 tiles (Dask runs earlier submissions first, so the small tiles fill the end), and feeds the results
-to the same :class:`~lightcuts.api.passes.PassMean` as a local run, in pass order. A worker that dies
+to the same :class:`~lightcuts.pipeline.passes.PassMean` as a local run, in pass order. A worker that dies
 loses only its running tasks, which Dask runs again on the others; the tiles' pixels do not depend on
 where they ran.
 """
@@ -52,11 +52,11 @@ def tile_task(token, cfg, scene, envmap, lights, trees, window, reference: bool)
 
 
 def pass_task(token, cfg, scene, envmap, p: int) -> dict:
-    """On a worker: pass ``p`` > 0 of a converging render, as :func:`lightcuts.api.passes.render_passes`
+    """On a worker: pass ``p`` > 0 of a converging render, as :func:`lightcuts.pipeline.passes.render_passes`
     makes it: lights and trees from the pass's seed, then the image."""
     def body(run):
-        from lightcuts.api.passes import pass_seed
-        from lightcuts.commands.common import render_timed
+        from lightcuts.pipeline.passes import pass_seed
+        from lightcuts.pipeline.timing import render_timed
 
         seed = pass_seed(cfg.seed, p)
         t0 = time.perf_counter()
@@ -132,7 +132,7 @@ class ClusterRunner:
         at once, or with ``keep_going`` once the other tasks have finished (a study keeps their results)."""
         from distributed import as_completed
 
-        from lightcuts.commands.common import progress_bar
+        from lightcuts.pipeline.timing import progress_bar
 
         failed = None
         with progress_bar(len(futures), desc, not progress, unit=unit) as bar:
@@ -182,11 +182,11 @@ class ClusterRunner:
 
     def passes(self, cfg, plan, scene, caster, envmap, *, desc: str = "lightcuts", progress: bool = True,
                lights=None, trees=None, on_pass=None, before_render=None):
-        """:func:`lightcuts.api.passes.render_passes` on the cluster (pass 0's ``lights`` and ``trees``
+        """:func:`lightcuts.pipeline.passes.render_passes` on the cluster (pass 0's ``lights`` and ``trees``
         made by the caller): the same image, cut sizes, ray counts and changes, byte for byte (the
         clamped fraction up to rounding, :class:`~lightcuts.distributed.tiles.Mosaic`). Pass 0's
         ``render_seconds`` is the wall time until its last tile, the others' their worker's time."""
-        from lightcuts.api.passes import PassMean, pass_seed
+        from lightcuts.pipeline.passes import PassMean, pass_seed
         from lightcuts.distributed.tiles import Mosaic
 
         if before_render is not None:

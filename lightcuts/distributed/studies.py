@@ -3,7 +3,7 @@ the local run.
 
 Compare (:func:`compare_rows`): the rows and reference the row store lacks are computed on the
 workers (the reference on the pixel sample in chunks of :data:`REFERENCE_CHUNK` pixels, each row's
-trees and image as one task, as :func:`lightcuts.api.comparing.compute_row` computes them locally,
+trees and image as one task, as :func:`lightcuts.pipeline.comparing.compute_row` computes them locally,
 after the scene and lights were shipped once); the client adds each row's error against the
 reference and stores it as soon as both are in, so an interrupted study keeps its finished rows and
 the next run (on a cluster or not: the store's keys are the same) computes only the rest. A row that
@@ -52,10 +52,10 @@ def reference_task(token, cfg, scene, envmap, lights, pixels) -> dict:
 
 
 def row_task(token, cfg, scene, envmap, lights, tree: tuple, label: str, shared_seconds: float) -> dict:
-    """On a worker: a compare row without its error columns (:func:`lightcuts.api.comparing.compute_row`)."""
+    """On a worker: a compare row without its error columns (:func:`lightcuts.pipeline.comparing.compute_row`)."""
     def body(run):
-        from lightcuts.api.comparing import compute_row
-        from lightcuts.commands.plan import plan_run
+        from lightcuts.pipeline.comparing import compute_row
+        from lightcuts.pipeline.plan import plan_run
 
         plan = plan_run(cfg, render=True, tree=_spec(tree))
         return compute_row(cfg, plan, label, run.scene, run.caster, lights, envmap, shared_seconds, progress=False)
@@ -65,9 +65,9 @@ def row_task(token, cfg, scene, envmap, lights, tree: tuple, label: str, shared_
 
 
 def compare_rows(runner, cfg, plans, labels, shared, store, pixels, progress: bool) -> tuple:
-    """``(reference, results)`` as :func:`lightcuts.api.comparing.compare_run` computes them, with
+    """``(reference, results)`` as :func:`lightcuts.pipeline.comparing.compare_run` computes them, with
     what the store lacks computed on the runner's cluster."""
-    from lightcuts.api.comparing import (finish_row, reference_key, row_key, save_reference, stored_reference,
+    from lightcuts.pipeline.comparing import (finish_row, reference_key, row_key, save_reference, stored_reference,
                                          stored_row)
 
     ref_key = reference_key(cfg, pixels) if pixels is not None else None

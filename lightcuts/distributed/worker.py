@@ -136,7 +136,7 @@ def run_state(token: str, cfg, scene, envmap) -> Run:
     if run is not None:
         _RUNS.move_to_end(token)
         return run
-    from lightcuts.commands.plan import plan_run
+    from lightcuts.pipeline.plan import plan_run
 
     t0 = time.perf_counter()
     plan = plan_run(cfg)  # the client checked the config; its caster need not render (scaling)

@@ -209,7 +209,7 @@ def render_window(integrator, scene, caster, lights: dict, trees: dict | None, *
 def warm(integrator) -> None:
     """Compile ``integrator``'s band kernel into numba's cache (and the kernels it calls first) by
     rendering one pixel of the built-in Cornell box without lights: a kernel's specialisation depends
-    only on its arguments' types, which are those of every render (lightcuts.commands.warmup runs the
+    only on its arguments' types, which are those of every render (lightcuts.pipeline.warmup runs the
     kernels module's ``warm_kernels()``, which calls this, in a child process while the command makes
     the lights and trees)."""
     from lightcuts.accel import make_caster

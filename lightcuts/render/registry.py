@@ -22,7 +22,7 @@ renders from the light forest of the lights and trees, :meth:`Integrator.forest`
 worker makes once for all its tiles; compare, whose rows differ by their trees, refuses an
 integrator without it) and ``kernels``: the module whose ``_render_band`` kernel its renders use and
 whose ``warm_kernels()`` compiles it, which the commands compile in a second process while the
-lights and trees are made (lightcuts.commands.warmup). Adding an integrator is a subclass of
+lights and trees are made (lightcuts.pipeline.warmup). Adding an integrator is a subclass of
 :class:`Integrator` registered with ``INTEGRATORS.register`` (or an entry point in group
 ``lightcuts.integrators`` naming the class).
 

@@ -130,7 +130,7 @@ class _BruteCaster:
 def test_a_caster_registered_at_run_time_renders(tmp_path, scratch_registries):
     """Registered from outside, it renders the image the bvh-sah caster renders (the same watertight
     test in float64), and the plan step accepts it for rendering."""
-    from lightcuts.commands.plan import plan_run
+    from lightcuts.pipeline.plan import plan_run
     from lightcuts.config import load_config
     from lightcuts.lights.direct import direct_lights
     from lightcuts.render.lightcut import render_image

@@ -69,7 +69,7 @@ def test_compile_notice_on_a_cold_cache_only(tmp_path):
     (tmp_path / "kern.py").write_text("from numba import njit\n\n@njit(cache=True)\ndef f(x):\n    return x + 1\n\n"
                                       "@njit(cache=True)\ndef g(x):\n    return f(x) * 2\n")
     code = ("import sys; sys.path.insert(0, sys.argv[1])\n"
-            "from lightcuts.commands.warmup import announce_compiles, NOTICE\nannounce_compiles()\n"
+            "from lightcuts.pipeline.warmup import announce_compiles, NOTICE\nannounce_compiles()\n"
             "import kern; kern.g(1.0); kern.f(2)\n")
     env = dict(os.environ, PYTHONPATH=str(ROOT), NUMBA_CACHE_DIR=str(tmp_path / "cache"))
     runs = [subprocess.run([sys.executable, "-c", code, str(tmp_path)], env=env, capture_output=True, text=True,

@@ -13,7 +13,7 @@ CONFIGS = sorted((Path(__file__).parents[2] / "configs").glob("*.yaml"))
 
 @pytest.mark.parametrize("path", CONFIGS, ids=lambda p: p.name)
 def test_shipped_configs_validate(path):
-    from lightcuts.commands.plan import plan_run
+    from lightcuts.pipeline.plan import plan_run
 
     cfg = load_config(path)
     assert cfg.name == path.stem
@@ -188,7 +188,7 @@ def test_emitter_triangles_at_the_limit(tmp_path):
 def test_eye_rays_of_a_render_at_the_limit(tmp_path, values, ok):
     """pixels (of the crop) x spp x passes (x continuation_rays with compensation) <= MAX_EYE_RAYS,
     checked by the plan of a render."""
-    from lightcuts.commands.plan import check_work, plan_run
+    from lightcuts.pipeline.plan import check_work, plan_run
 
     cfg = load_config(write(tmp_path, "scene: {builtin: cornell}\n"), values=values)
     plan_run(cfg)  # a run that does not render is not bounded by its eye rays

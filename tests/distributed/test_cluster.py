@@ -49,8 +49,8 @@ def config(name):
 
 
 def render(cfg, runner=None):
-    from lightcuts.api.rendering import render_run
-    from lightcuts.commands.plan import plan_run
+    from lightcuts.pipeline.rendering import render_run
+    from lightcuts.pipeline.plan import plan_run
 
     return render_run(cfg, plan_run(cfg, render=True), None, progress=False, runner=runner)
 

@@ -255,7 +255,7 @@ def test_reference_curve_measures_both_renderers_at_the_same_times(mi, tmp_path,
 
 
 def test_reference_split_has_a_row_per_remedy(mi, tmp_path):
-    from lightcuts.api.convergence import SPLIT_ROWS
+    from lightcuts.pipeline.convergence import SPLIT_ROWS
 
     out = tmp_path / "split"
     assert _cli(["reference", CORNELL, "--split", "--passes", 2, "--spp", 16, "--out", out, "--no-progress",
@@ -279,7 +279,7 @@ def test_bad_study_options_are_one_line_errors(tmp_path, capsys, argv, message):
 
 
 def test_the_curve_helpers():
-    from lightcuts.api.convergence import loglog_slope, pass_counts
+    from lightcuts.pipeline.convergence import loglog_slope, pass_counts
 
     assert pass_counts(1) == [1] and pass_counts(64) == [1, 2, 4, 8, 16, 32, 64] and pass_counts(6) == [1, 2, 4, 6]
     t = np.array([1.0, 2.0, 4.0, 8.0])

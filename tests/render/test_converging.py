@@ -15,7 +15,7 @@ import trimesh
 
 import lightcuts
 from lightcuts.accel import make_caster
-from lightcuts.api.passes import pass_seed
+from lightcuts.pipeline.passes import pass_seed
 from lightcuts.lights.direct import direct_lights
 from lightcuts.lights.indirect import indirect_lights
 from lightcuts.lights.lightset import LUMINANCE, LightSet

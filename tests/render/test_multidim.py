@@ -297,7 +297,7 @@ def test_bad_inputs_raise_one_line_errors(cornell):
 
 def test_plan_refuses_an_aperture_for_a_pinhole_integrator(tmp_path):
     """camera.aperture > 0 needs an integrator with a thin lens: one line naming the key, before any work."""
-    from lightcuts.commands.plan import plan_run
+    from lightcuts.pipeline.plan import plan_run
     from lightcuts.config import load_config
 
     (tmp_path / "run.yaml").write_text("scene: {builtin: cornell}\ncamera: {aperture: 0.1}\n")
@@ -313,7 +313,7 @@ def test_plan_refuses_an_aperture_for_a_pinhole_integrator(tmp_path):
 def test_warm_kernels_compiles_the_specialisation_renders_use(cornell):
     # The commands compile the integrator's render kernel in a child process through its ``kernels``
     # module's warm_kernels (no lights, another scene): the real renders must find that specialisation.
-    from lightcuts.commands.warmup import is_cached
+    from lightcuts.pipeline.warmup import is_cached
     from lightcuts.render.registry import INTEGRATORS
     from lightcuts.render.multidim import render as md_render
 

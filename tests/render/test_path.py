@@ -12,7 +12,7 @@ import pytest
 
 import lightcuts
 from lightcuts.accel import make_caster
-from lightcuts.api.passes import pass_seed
+from lightcuts.pipeline.passes import pass_seed
 from lightcuts.errors import LightcutsError
 from lightcuts.render.path import path_trace
 from lightcuts.render.registry import make_integrator
@@ -29,14 +29,14 @@ def path_config(**overrides):
 
 
 def run_scene(cfg):
-    from lightcuts.commands.plan import plan_run
+    from lightcuts.pipeline.plan import plan_run
 
     return plan_run(cfg, render=True).scene()
 
 
 def test_passes_are_the_mean_of_the_pass_seeds_path_images():
     """render.passes with the path integrator: pass p's image is the path tracer's at pass_seed(seed,
-    p), and the run's image their mean, summed in pass order (lightcuts.api.passes.PassMean)."""
+    p), and the run's image their mean, summed in pass order (lightcuts.pipeline.passes.PassMean)."""
     cfg = path_config(**{"render.passes": 3, "render.spp": 2, "seed": 11})
     run = lightcuts.render(cfg, progress=False)
     scene = run_scene(cfg)
@@ -75,7 +75,7 @@ def test_paths_have_at_most_max_depth_vertices():
      "render.integrator.max_depth: 65 is above the maximum 64"),
 ])
 def test_the_plan_refuses_what_the_path_integrator_cannot_render(sets, message):
-    from lightcuts.commands.plan import plan_run
+    from lightcuts.pipeline.plan import plan_run
 
     with pytest.raises(LightcutsError) as e:
         plan_run(path_config(**sets), render=True)
@@ -107,7 +107,7 @@ def test_a_sun_a_reference_or_a_compare_is_one_line_before_any_work(tmp_path):
 def test_warm_kernels_compiles_the_specialisation_renders_use():
     """The commands compile the path kernel in a child process through warm_kernels (the ``kernels``
     trait's module; another scene, no lights): a run's render then finds that very specialisation."""
-    from lightcuts.commands.warmup import is_cached
+    from lightcuts.pipeline.warmup import is_cached
     from lightcuts.render import path
     from lightcuts.render.registry import INTEGRATORS
 

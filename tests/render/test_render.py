@@ -365,9 +365,9 @@ def test_warm_kernels_compiles_the_specialisation_renders_use(cornell):
     from lightcuts.scene.scene import Scene
     from lightcuts.scene.textures import TextureSet
 
-    # lightcuts.commands.warmup compiles the render kernel in a child process through warm_kernels
+    # lightcuts.pipeline.warmup compiles the render kernel in a child process through warm_kernels
     # (no lights, another scene): the real renders must then find that very specialisation in the cache.
-    from lightcuts.commands.warmup import is_cached
+    from lightcuts.pipeline.warmup import is_cached
     from lightcuts.render.lightcut import _render_band, warm_kernels
 
     scene, caster, _, lights, trees, _ = cornell

@@ -172,7 +172,7 @@ class _Shared:
 
     def get(self):
         if not self.ready:
-            from lightcuts.commands.warmup import start_render_warmup
+            from lightcuts.pipeline.warmup import start_render_warmup
 
             t0 = time.perf_counter()
             self.scene = self.plan.scene()
@@ -189,7 +189,7 @@ class _Shared:
 def compare_run(cfg, plans, labels, pixels, store, *, source: str | None = None, diff=None,
                 mitsuba_spp: int | None = None, mitsuba_passes: int = 0, progress: bool = True,
                 runner=None) -> Comparison:
-    """Run the rows (one :class:`~lightcuts.commands.plan.Plan` and label each) and the reference on
+    """Run the rows (one :class:`~lightcuts.pipeline.plan.Plan` and label each) and the reference on
     ``pixels`` ((K, 2) int64 or None: no error columns); ``store`` a RowStore; ``mitsuba_spp``: add
     the Mitsuba study with a long render of that many spp, and with ``mitsuba_passes`` > 0 the
     converging render of the study's row (:func:`converging_config`) at its own time; ``source``,
@@ -197,7 +197,7 @@ def compare_run(cfg, plans, labels, pixels, store, *, source: str | None = None,
     on a cluster (``runner.compare_rows(cfg, plans, labels, shared, store, pixels, progress) ->
     (reference, results)``, :class:`lightcuts.distributed.runner.ClusterRunner`), their values those
     of this function's own; its ``record()`` becomes report.json's ``cluster``."""
-    from lightcuts.commands.warmup import finish_warmup
+    from lightcuts.pipeline.warmup import finish_warmup
 
     shared = _Shared(plans[0], warm=runner is None)
     try:
@@ -237,8 +237,8 @@ def converging_config(cfg, integrator, passes: int):
 
 def _converging(plan, shared, passes: int, progress: bool) -> dict:
     """The converging render of the row ``plan`` on the shared scene: {"label", "seconds", "image"}."""
-    from lightcuts.api.passes import render_passes
-    from lightcuts.commands.plan import plan_run
+    from lightcuts.pipeline.passes import render_passes
+    from lightcuts.pipeline.plan import plan_run
 
     cfg = converging_config(plan.cfg, plan.integrator, passes)
     r = cfg.render
@@ -272,7 +272,7 @@ def save_reference(store, key: str, reference: dict) -> None:
 
 def _reference(cfg, shared, store, pixels, progress: bool) -> dict:
     """The all-lights reference on the pixel sample: {"image": (K, 3), "seconds", "shadow_rays"}."""
-    from lightcuts.commands.common import progress_bar
+    from lightcuts.pipeline.timing import progress_bar
     from lightcuts.render.registry import make_integrator
 
     key = reference_key(cfg, pixels)
@@ -319,10 +319,10 @@ def compute_row(cfg, plan, label, scene, caster, lights, envmap, shared_seconds:
                 before_render=None) -> dict:
     """A row's trees and image: {"row", "cut", "image"} without the error columns (:func:`finish_row`).
     The builder's kernels are loaded on a few lights first (untimed), then the trees are built (timed)
-    and the image rendered after a one-pixel load (:func:`~lightcuts.commands.common.render_timed`);
+    and the image rendered after a one-pixel load (:func:`~lightcuts.pipeline.timing.render_timed`);
     ``shared_seconds``: the scene's and lights' time; ``before_render()`` once before the image."""
-    from lightcuts.commands.common import render_timed
-    from lightcuts.commands.plan import tree_meta
+    from lightcuts.pipeline.timing import render_timed
+    from lightcuts.pipeline.plan import tree_meta
     from lightcuts.lights.lightset import LightSet
     from lightcuts.trees.build import build_tree
 
@@ -370,7 +370,7 @@ def finish_row(cfg, computed: dict, pixels, reference, store, label, key: str) -
 
 def _row(cfg, plan, label, shared, store, pixels, reference, progress: bool) -> dict:
     """One row: {"row": the table row, "cut": (H, W) cut sizes, "image"}, from the store or computed."""
-    from lightcuts.commands.warmup import finish_warmup
+    from lightcuts.pipeline.warmup import finish_warmup
 
     key = row_key(cfg, plan, pixels)
     cached = stored_row(store, plan, label, key)

@@ -6,7 +6,7 @@ per-pixel and 8x8-block relative luminance error). The path tracer (:class:`Path
 Mitsuba 3's or lightcuts' own with the exact BRDF (``--renderer``).
 
 * :func:`error_curve`: lightcuts' running mean after passes 1, 2, 4, ... N of the config
-  (:func:`lightcuts.api.passes.render_passes`, wall time of lights, trees and image summed over the
+  (:func:`lightcuts.pipeline.passes.render_passes`, wall time of lights, trees and image summed over the
   passes), and the path tracer run for each of those times (its spp from timing runs of at least
   a second); the slope of lightcuts' error against time, fitted in log-log (an unbiased
   estimator falls as time^-0.5; a biased one flattens at its bias), and at each time who is lower.
@@ -143,7 +143,7 @@ def error_curve(cfg, plan, scene, envmap, caster, reference: np.ndarray, progres
     winner}, ...], "image": the final running mean}; the path tracer's rows have its
     :attr:`PathTracer.label` as "method". Its points are its render times (the render call
     alone), lightcuts' the summed pass times. ``tracer``: the path tracer (default Mitsuba's)."""
-    from lightcuts.api.passes import render_passes
+    from lightcuts.pipeline.passes import render_passes
 
     tracer = tracer or PathTracer()
     points = set(pass_counts(cfg.render.passes))
@@ -209,7 +209,7 @@ def energy_split(make_run, passes: int, spp: int, progress: bool = True, log=pri
     "overrides", "diffuse", "integrator", "seconds", "energy_ratio", "pixel_median",
     "block8_median"}, ...], "references": {key: {"seconds"}}, "images": {key: image}}, one key per
     long render: "path", "path-diffuse" (materials made diffuse) or "direct"."""
-    from lightcuts.api.passes import render_passes
+    from lightcuts.pipeline.passes import render_passes
 
     tracer = tracer or PathTracer()
     runs = []  # every row's run is loaded and planned before any work: a refused one stops here

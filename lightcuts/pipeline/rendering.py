@@ -105,16 +105,16 @@ def check_reference(cfg, integrator) -> None:
 
 def render_run(cfg, plan, source: str | None, reference: bool = False, progress: bool = True,
                runner=None) -> Render:
-    """Run the plan (:func:`lightcuts.commands.plan.plan_run` of ``cfg`` with ``render=True``) and
+    """Run the plan (:func:`lightcuts.pipeline.plan.plan_run` of ``cfg`` with ``render=True``) and
     return the Render; ``source`` is the config file recorded in the report (None: none).
 
     runner : renders the passes and the reference instead of this process, with the signature of
-        :func:`~lightcuts.api.passes.render_passes` (``runner.passes``), ``runner.reference(cfg, plan,
+        :func:`~lightcuts.pipeline.passes.render_passes` (``runner.passes``), ``runner.reference(cfg, plan,
         scene, lights, envmap, desc, progress) -> RenderResult`` and ``runner.record() -> dict``
         (report.json's ``cluster``): a cluster's (:class:`lightcuts.distributed.runner.ClusterRunner`);
         None renders here.
     """
-    from lightcuts.commands.warmup import finish_warmup
+    from lightcuts.pipeline.warmup import finish_warmup
 
     if reference:
         check_reference(cfg, plan.integrator)
@@ -128,10 +128,10 @@ def render_run(cfg, plan, source: str | None, reference: bool = False, progress:
 
 def _run(cfg, plan, source, reference: bool, progress: bool, warmup: list, runner) -> Render:
     from lightcuts import __version__
-    from lightcuts.api.passes import render_passes
-    from lightcuts.commands.common import progress_bar
-    from lightcuts.commands.plan import tree_meta
-    from lightcuts.commands.warmup import finish_warmup, start_render_warmup
+    from lightcuts.pipeline.passes import render_passes
+    from lightcuts.pipeline.timing import progress_bar
+    from lightcuts.pipeline.plan import tree_meta
+    from lightcuts.pipeline.warmup import finish_warmup, start_render_warmup
     from lightcuts.render.registry import make_integrator
     from lightcuts.report.images import relative_error
 

@@ -119,7 +119,7 @@ def render_passes(cfg, plan, scene, caster, envmap, *, desc: str = "lightcuts", 
     pass 0's record); on_pass(p, running_mean (H, W, 3) float64, seconds so far) after each pass;
     before_render() once, before pass 0's image (e.g. waiting for the kernel's compile child).
     """
-    from lightcuts.commands.common import render_timed
+    from lightcuts.pipeline.timing import render_timed
 
     n = int(cfg.render.passes)
     mean = PassMean(n, on_pass)
