@@ -17,6 +17,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from lightcuts.errors import LightcutsError
 from lightcuts.pipeline.comparing import DEFAULT_PIXELS, Comparison
 from lightcuts.pipeline.rendering import Render
 
@@ -97,24 +98,41 @@ def _count(value, key: str, lo: int, hi: int) -> int:
     return int(value)
 
 
-def render(config, *, reference: bool = False, progress: bool = True) -> Render:
+def render(config, *, reference: bool = False, progress: bool = True, cluster=None,
+           tile_size: int | None = None) -> Render:
     """Render a run: config -> plan -> scene -> lights -> trees -> image, as ``lightcuts render``.
 
     config : a RunConfig (:func:`load_config`) or the path of a YAML run file
     reference : also render the all-lights reference (every light, every pixel; slow) and put its
         error in the report
     progress : progress bars on stderr
+    cluster : None (this process), or a ``distributed.Client`` or a scheduler address
+        (``tcp://host:port``) whose workers render the image's tiles and passes, as ``--scheduler``
+        does (the same pixels); a Client is left open. tile_size : the tiles' side, pixels (default
+        as ``--tile-size``)
     """
-    from lightcuts.pipeline.rendering import render_run
     from lightcuts.pipeline.plan import plan_run
+    from lightcuts.pipeline.rendering import render_run
 
     cfg, source = _config(config)
     reference, progress = _flag(reference, "reference"), _flag(progress, "progress")
-    return render_run(cfg, plan_run(cfg, render=True), source, reference, progress)
+    plan = plan_run(cfg, render=True)
+    if cluster is None:
+        if tile_size is not None:
+            raise LightcutsError("tile_size: only with a cluster")
+        return render_run(cfg, plan, source, reference, progress)
+    from lightcuts.distributed.options import DEFAULT_TILE_SIZE, MAX_TILE_SIZE
+    from lightcuts.distributed.runner import ClusterRunner
+    from lightcuts.distributed.session import cluster_session
+
+    tile_size = _count(DEFAULT_TILE_SIZE if tile_size is None else tile_size, "tile_size", 1, MAX_TILE_SIZE)
+    with cluster_session(cluster, plan.integrator.trait("kernels")) as session:
+        return render_run(cfg, plan, source, reference, progress, ClusterRunner(session, tile_size))
 
 
 def compare(config, builders=None, metrics=None, *, pixels: int = DEFAULT_PIXELS, store=None,
-            force: bool = False, mitsuba_spp: int | None = None, progress: bool = True) -> Comparison:
+            force: bool = False, mitsuba_spp: int | None = None, progress: bool = True,
+            cluster=None) -> Comparison:
     """Render the run once per builder (and metric), as ``lightcuts compare``: the 2008 paper's Fig. 8.
 
     builders, metrics : names, as a list or comma-separated (default the five builders of
@@ -125,6 +143,8 @@ def compare(config, builders=None, metrics=None, *, pixels: int = DEFAULT_PIXELS
         None keeps nothing. force : recompute rows the store has
     mitsuba_spp : add the study against Mitsuba's path tracer at equal time, with a long Mitsuba
         render of that many spp (needs the ``mitsuba`` extra)
+    cluster : None, or a ``distributed.Client`` or a scheduler address whose workers compute the
+        rows, as ``lightcuts compare --scheduler`` (the same rows); a Client is left open
 
     Returns a :class:`Comparison`: ``.rows`` as table.csv has them, ``.cut_sizes`` and ``.images``
     per row label, ``.report``, ``.save(folder)``.
@@ -152,5 +172,15 @@ def compare(config, builders=None, metrics=None, *, pixels: int = DEFAULT_PIXELS
     width, height = image_size(cfg)
     sample = sample_pixels(width, height, cfg.render.crop, pixels, cfg.seed) if pixels else None
     diff = tuple(labels[:2]) if len(labels) >= 2 else None
-    return compare_run(cfg, plans, labels, sample, RowStore(store, force), source=source, diff=diff,
-                       mitsuba_spp=mitsuba_spp, progress=progress)
+
+    def run(runner=None):
+        return compare_run(cfg, plans, labels, sample, RowStore(store, force), source=source, diff=diff,
+                           mitsuba_spp=mitsuba_spp, progress=progress, runner=runner)
+
+    if cluster is None:
+        return run()
+    from lightcuts.distributed.runner import ClusterRunner
+    from lightcuts.distributed.session import cluster_session
+
+    with cluster_session(cluster, plans[0].integrator.trait("kernels")) as session:
+        return run(ClusterRunner(session))

@@ -337,3 +337,53 @@ def session_for(spec, kernels: str | None = None):
         yield session
     finally:
         session.close()
+
+
+@contextlib.contextmanager
+def cluster_session(cluster, kernels: str | None = None, key: str = "cluster"):
+    """``with cluster_session(cluster) as session:`` the Session of the Python API's ``cluster``
+    argument: a ``distributed.Client`` the caller owns (left open; the run's tasks and the workers'
+    state of the run are dropped at the end) or a scheduler address (``tcp://host:port``, connected
+    and closed here, as ``--scheduler``). Either needs a worker and this machine's versions on every
+    worker. LightcutsError naming ``key`` for anything else, before any work."""
+    import importlib.util
+
+    if importlib.util.find_spec("distributed") is None:
+        raise LightcutsError(f"{key}: Dask distributed is not installed; install it with: "
+                             "pip install 'lightcuts[distributed]'")
+    try:
+        session = _given_session(cluster, key)
+    except LightcutsError as exc:  # connect's and check_versions' lines name the CLI's flag
+        raise LightcutsError(str(exc).replace("--scheduler", key, 1)) from None
+    try:
+        if kernels is not None:
+            session.warm(kernels)
+        yield session
+    finally:
+        session.close()
+
+
+def _given_session(cluster, key: str) -> Session:
+    """The Session of :func:`cluster_session`'s ``cluster`` (a Client or a scheduler address)."""
+    from distributed import Client
+
+    from lightcuts.distributed.options import DEFAULT_CONNECT_TIMEOUT, check_address
+
+    if isinstance(cluster, str):
+        return connect(check_address(cluster), None, DEFAULT_CONNECT_TIMEOUT)
+    if not isinstance(cluster, Client):
+        raise LightcutsError(f"{key} {cluster!r}: expected a distributed.Client or a scheduler address "
+                             f"(tcp://HOST:PORT), got {type(cluster).__name__}")
+    _quiet()
+    if cluster.status != "running":
+        raise LightcutsError(f"{key}: the Client is {cluster.status}, not running")
+    address = cluster.scheduler.address
+    session = Session(cluster, None, address, owned=False)
+    try:
+        if not session.workers():
+            raise LightcutsError(f"{key}: the Client's cluster at {address} has no worker")
+        check_versions(cluster, address)
+    except BaseException:
+        session.close()
+        raise
+    return session

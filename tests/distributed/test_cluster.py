@@ -88,6 +88,27 @@ def same_pixels(a, b):
 
 
 @SPAWNS
+def test_the_python_api_renders_and_compares_on_a_client_or_an_address(cluster):
+    """``lightcuts.render(cfg, cluster=...)`` with the caller's Client (left open) or the scheduler's
+    address gives the local pixels; ``lightcuts.compare(cfg, cluster=...)`` the local rows."""
+    import lightcuts
+
+    cfg = config("cornell")
+    cluster.client.wait_for_workers(2, timeout=60)
+    on_client = lightcuts.render(cfg, progress=False, cluster=cluster.client, tile_size=16)
+    assert cluster.client.status == "running"
+    assert on_client.report["cluster"]["tiles"] > 1
+    on_address = lightcuts.render(cfg, progress=False, cluster=cluster.address)
+    assert same_pixels(on_client, local("cornell")) and same_pixels(on_address, local("cornell"))
+    here = lightcuts.compare(cfg, builders="divisive-3d,saoh", pixels=8, progress=False)
+    there = lightcuts.compare(cfg, builders="divisive-3d,saoh", pixels=8, progress=False, cluster=cluster.client)
+    assert cluster.client.status == "running"
+    for label in here.images:
+        assert here.images[label].tobytes() == there.images[label].tobytes()
+        assert here.cut_sizes[label].tobytes() == there.cut_sizes[label].tobytes()
+
+
+@SPAWNS
 @pytest.mark.parametrize("name", ["cornell", "kitchen", "cornell-multidimensional", "cornell-path"])
 def test_tiles_give_the_local_bytes_whatever_their_size(cluster, name):
     from lightcuts.distributed.worker import runs
