@@ -22,7 +22,7 @@ from lightcuts.registry import Registry, declare
 from lightcuts.render.registry import INTEGRATORS
 from lightcuts.scene.registry import SCENES
 from lightcuts.trees import BUILDERS, METRICS, Metric, build_tree, register_metric, tree_spec, validate_tree
-from lightcuts.trees.metric import metric_values
+from lightcuts.trees.metric_type import metric_values
 
 from conftest import cli_recording_work, random_lights
 

@@ -21,7 +21,7 @@ import numpy as np
 from lightcuts.cluster.agglomerate import PARALLEL_MIN, agglomerate
 from lightcuts.cluster.kd_tree import LEAF_SIZE
 from lightcuts.errors import LightcutsError
-from lightcuts.trees.metric import Metric
+from lightcuts.trees.metric_type import Metric
 from lightcuts.trees.registry import BUILDERS
 
 

@@ -17,7 +17,7 @@ from lightcuts.lights.lightset import LightSet
 from lightcuts.limits import MAX_COORD
 from lightcuts.trees.checks import check_lights, check_topology
 from lightcuts.trees.fill import fill_nodes
-from lightcuts.trees.metric import Metric
+from lightcuts.trees.metric_type import Metric
 from lightcuts.trees.spec import TreeSpec, tree_spec
 from lightcuts.trees.tree import LightTree
 

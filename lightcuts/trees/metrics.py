@@ -41,7 +41,7 @@ from __future__ import annotations
 from typing import Callable
 
 from lightcuts.cluster.dissimilarity import SURFACE_AREA, WALTER2005, WALTER2008, metric_eval  # noqa: F401
-from lightcuts.trees.metric import USER_METRIC_ID, Metric, as_metric, metric_values  # noqa: F401
+from lightcuts.trees.metric_type import USER_METRIC_ID, Metric, as_metric, metric_values  # noqa: F401
 from lightcuts.trees.registry import METRICS
 
 

@@ -14,7 +14,7 @@ read. The trait ``max_lights`` bounds the light sets it accepts (the O(N^2) refe
 ``lightcuts compare``: ``compare_row`` (an int) puts a builder in the default rows, in that order
 (the 2008 paper's Fig. 8), and ``compare_baseline`` marks the row the cut sizes are divided by.
 
-A metric entry's object is always a :class:`~lightcuts.trees.metric.Metric` (an njit function
+A metric entry's object is always a :class:`~lightcuts.trees.metric_type.Metric` (an njit function
 registered or named by an entry point is wrapped); it reads ``c`` when it has a cone term.
 
 Outside packages add builders through the entry-point group ``lightcuts.builders`` (with
@@ -30,7 +30,7 @@ from lightcuts.registry import Param, Registry
 
 
 def _as_metric(name, obj):
-    from lightcuts.trees.metric import as_metric
+    from lightcuts.trees.metric_type import as_metric
 
     return as_metric(obj, name)
 

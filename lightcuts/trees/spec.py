@@ -16,7 +16,7 @@ from typing import Mapping
 from lightcuts.config.schema import DEFAULT_BUILDER
 from lightcuts.errors import LightcutsError
 from lightcuts.registry import Entry, Resolved
-from lightcuts.trees.metric import Metric
+from lightcuts.trees.metric_type import Metric
 from lightcuts.trees.registry import BUILDERS, METRICS
 
 #: Config keys named in messages, by parameter (commands pass their own, e.g. ``--metric``).

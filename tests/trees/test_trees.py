@@ -22,7 +22,7 @@ from lightcuts.errors import LightcutsError
 from lightcuts.lights import LightSet
 from lightcuts.trees import (BUILDERS, METRICS, LightTree, build_tree, default_c, get_builder, get_metric,
                              metric_eval, register_metric, validate_tree)
-from lightcuts.trees.metric import metric_values
+from lightcuts.trees.metric_type import metric_values
 
 from conftest import random_lights, unit
 
