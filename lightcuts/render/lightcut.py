@@ -15,8 +15,8 @@ VPLs in the estimate and the bound alike (docs/math.md, "Clamping").
 
 The kernel compiles once per kernel caster (the tag in the caster's data, lightcuts.accel.kernel_api)
 and calls that caster's device functions directly. numba caches each module's kernels keyed on that
-module's source file only: after editing bounds, shading, forest, heap, cut, reference, camera, eye
-or a caster's device functions (lightcuts/accel), delete ``lightcuts/render/__pycache__/*.nb[ic]``
+module's source file only: after editing bounds, shading, forest, heap, cut, reference, camera, eye,
+driver or a caster's device functions (lightcuts/accel), delete ``lightcuts/render/__pycache__/*.nb[ic]``
 (or touch this file), or a cached kernel built from the old code may still run.
 """
 
@@ -159,14 +159,14 @@ def _render_band(cdata, width, cam, seed, spp, sx, sy, x0, x1, y0, y1, face_norm
 class Lightcuts(CutIntegrator):
     """A lightcut per eye ray through every light tree (Walter et al. 2005).
 
-    Its kernel is this module's. Settings as :class:`CutIntegrator`, plus compensation : add the light the VPLs lose to clamping
-    and to glossy surfaces by a continuation of the eye path (lightcuts.render.continuation; the
-    VPLs must come from glossy particle paths), whose rays count as shadow rays; representatives :
-    ``fixed`` (the trees') or ``stochastic`` (one light drawn per cut node and eye ray,
-    lightcuts.render.cut.stochastic_estimate); continuation_rays : with compensation, the
-    continuations averaged per eye ray (1 to MAX_CONTINUATION_RAYS); all_lights : the brute-force
-    reference instead (every light at every hit, one shadow ray each, no trees). A pinhole camera
-    only (the plan refuses an aperture).
+    Its kernel is this module's. Settings as :class:`CutIntegrator`, plus compensation : add the light
+    the VPLs lose to clamping and to glossy surfaces by a continuation of the eye path
+    (lightcuts.render.continuation; the VPLs must come from glossy particle paths), whose rays count as
+    shadow rays; representatives : ``fixed`` (the trees') or ``stochastic`` (one light drawn per cut
+    node and eye ray, lightcuts.render.cut.stochastic_estimate); continuation_rays : with compensation,
+    the continuations averaged per eye ray (1 to MAX_CONTINUATION_RAYS); all_lights : the brute-force
+    reference instead (every light at every hit, one shadow ray each, no trees). A pinhole camera only
+    (the plan refuses an aperture).
     """
 
     def __init__(self, *, spp: int = 1, eps: float = 0.02, max_cut: int = 1000, clamp: bool = True,

@@ -41,8 +41,8 @@ def test_the_path_integrator_renders_the_reference_commands_path_image(tmp_path)
     """``lightcuts render`` with ``render.integrator: path`` and ``lightcuts reference --renderer
     lightcuts`` at the same seed and samples per pixel give the same image file, byte for byte:
     one path tracer, whichever command runs it."""
-    common = ["--no-progress", "--set", "seed=7", "--set", "camera.resolution=[24,20]", "--set", "render.crop=[2,3,22,17]",
-              *SMALL]
+    common = ["--no-progress", "--set", "seed=7", "--set", "camera.resolution=[24,20]",
+              "--set", "render.crop=[2,3,22,17]", *SMALL]
     assert _cli(["reference", ROOT / "configs/cornell.yaml", "--renderer", "lightcuts", "--spp", 8,
                  "--out", tmp_path / "ref", *common]) == 0
     assert _cli(["render", ROOT / "configs/cornell.yaml", "--set", "render.integrator=path", "--set", "render.spp=8",

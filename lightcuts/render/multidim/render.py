@@ -107,15 +107,15 @@ class Multidimensional(CutIntegrator):
     """One cut per pixel through (gather tree) x (light trees) (Walter et al. 2006); its cut counts
     (gather point, light) pairs per pixel.
 
-    Its kernel is this module's. Settings as :class:`CutIntegrator` (``max_cut``: pairs per gather point, so the pixel's cut
-    holds at most ``max_cut * spp`` pairs, up to MAX_CUT: a config means the same effort per eye
-    ray for both cut integrators), plus aperture : lens radius, world units (0: pinhole, exactly
-    the lightcuts integrator's eye rays); focus_distance : distance of the plane in focus along the
-    view axis (None: |look_at - position|); representatives : light representatives per light node
-    (1: the tree's own only); gather_representatives : representative gather points per gather
-    node, the pair (G, L) using the one of column L mod R (1: the gather tree's own only; more
-    decorrelates the pairs' errors at the cost of shadow rays); all_pairs : the brute-force
-    reference instead (every gather point with every light).
+    Its kernel is this module's. Settings as :class:`CutIntegrator` (``max_cut``: pairs per gather
+    point, so the pixel's cut holds at most ``max_cut * spp`` pairs, up to MAX_CUT: a config means the
+    same effort per eye ray for both cut integrators), plus aperture : lens radius, world units (0:
+    pinhole, exactly the lightcuts integrator's eye rays); focus_distance : distance of the plane in
+    focus along the view axis (None: |look_at - position|); representatives : light representatives per
+    light node (1: the tree's own only); gather_representatives : representative gather points per
+    gather node, the pair (G, L) using the one of column L mod R (1: the gather tree's own only; more
+    decorrelates the pairs' errors at the cost of shadow rays); all_pairs : the brute-force reference
+    instead (every gather point with every light).
     """
 
     def __init__(self, *, spp: int = 16, eps: float = 0.02, max_cut: int = 1000, clamp: bool = True,
