@@ -140,7 +140,7 @@ class Comparison:
                                                        diff, self.title(), report.get("cut_unit"))
             for name, image in (self.mitsuba_images or {}).items():
                 write_exr(tmp / f"mitsuba-{name}.exr", image)
-                write_png(tmp / f"mitsuba-{name}.png", image, self.config.render.exposure)
+                write_png(tmp / f"mitsuba-{name}.png", image, self.config.render.tonemap)
             save_json(tmp / "report.json", report)
         return out
 

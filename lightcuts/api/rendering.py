@@ -31,10 +31,10 @@ class Render:
     reference: np.ndarray | None = None
 
     def srgb8(self) -> np.ndarray:
-        """(H, W, 3) uint8: the image as image.png has it (sRGB, ``render.exposure`` stops)."""
-        from lightcuts.report.images import to_srgb8
+        """(H, W, 3) uint8: the image as image.png has it (sRGB through ``render.tonemap``)."""
+        from lightcuts.report.tonemap import of, srgb8
 
-        return to_srgb8(self.image, self.config.render.exposure)
+        return srgb8(self.image, *of(self.config.render.tonemap))
 
     def _repr_png_(self) -> bytes:
         """The tone-mapped image as PNG bytes (shown by Jupyter/IPython)."""
@@ -57,13 +57,13 @@ class Render:
         out = check_output_dir(Path(folder), "folder")
         with output_set(out, keep=SUBRUN_FOLDERS) as tmp:
             write_exr(tmp / "image.exr", self.image)
-            write_png(tmp / "image.png", self.image, cfg.render.exposure)
+            write_png(tmp / "image.png", self.image, cfg.render.tonemap)
             write_heatmap(tmp / "cutsize.png", self.cut_size, label=f"cut size ({report['cut_size_unit']})",
                           title=f"{cfg.name}: {report['builder']}, eps {cfg.render.eps:g}, "
                                 f"mean cut {report['cut_size_mean']:.0f}")
             if self.reference is not None:
                 write_exr(tmp / "reference.exr", self.reference)
-                write_png(tmp / "reference.png", self.reference, cfg.render.exposure)
+                write_png(tmp / "reference.png", self.reference, cfg.render.tonemap)
             save_json(tmp / "report.json", report)
         return out
 

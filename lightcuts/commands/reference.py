@@ -201,9 +201,9 @@ def _run(args, cfg, plan, out_dir: Path, warmup: list, tracer) -> dict:
     }
     with output_set(out_dir) as tmp_dir:
         write_exr(tmp_dir / f"{_file(tracer)}.exr", ref)
-        write_png(tmp_dir / f"{_file(tracer)}.png", ref, cfg.render.exposure)
+        write_png(tmp_dir / f"{_file(tracer)}.png", ref, cfg.render.tonemap)
         write_exr(tmp_dir / "lightcuts.exr", image)
-        write_png(tmp_dir / "lightcuts.png", image, cfg.render.exposure)
+        write_png(tmp_dir / "lightcuts.png", image, cfg.render.tonemap)
         save_json(tmp_dir / "report.json", report)
     ratio = comparison["energy_ratio"]
     e, b = comparison["pixel"], comparison.get("block8")
@@ -246,9 +246,9 @@ def _run_curve(args, cfg, plan, out_dir: Path, tracer) -> dict:
               **curve}
     with output_set(out_dir) as tmp_dir:
         write_exr(tmp_dir / f"{_file(tracer)}.exr", ref)
-        write_png(tmp_dir / f"{_file(tracer)}.png", ref, cfg.render.exposure)
+        write_png(tmp_dir / f"{_file(tracer)}.png", ref, cfg.render.tonemap)
         write_exr(tmp_dir / "lightcuts.exr", image)
-        write_png(tmp_dir / "lightcuts.png", image, cfg.render.exposure)
+        write_png(tmp_dir / "lightcuts.png", image, cfg.render.tonemap)
         save_csv(tmp_dir / "curve.csv", rows, ["method", "passes", "spp", "seconds", "energy_ratio", "pixel_median",
                                                "block8_median"])
         loglog_panels(tmp_dir / "curve.png", panels, f"{cfg.name}: error against time ({settings}; "
@@ -274,7 +274,7 @@ def _write_split(args, cfg, out_dir: Path, split: dict, tracer) -> dict:
               "path_tracer": {**tracer.describe(), "spp": args.spp}, **split}
     with output_set(out_dir) as tmp_dir:
         write_exr(tmp_dir / f"{_file(tracer)}.exr", images["path"])
-        write_png(tmp_dir / f"{_file(tracer)}.png", images["path"], cfg.render.exposure)
+        write_png(tmp_dir / f"{_file(tracer)}.png", images["path"], cfg.render.tonemap)
         save_csv(tmp_dir / "split.csv", rows, ["label", "energy_ratio", "pixel_median", "block8_median", "seconds",
                                                "integrator", "diffuse", "overrides"])
         save_json(tmp_dir / "report.json", report)

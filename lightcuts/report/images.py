@@ -1,6 +1,7 @@
-"""Image outputs: linear EXR, sRGB PNG (colour-science), cut-size heatmap with a colour bar.
+"""Image outputs: linear EXR, tone-mapped sRGB PNG (:mod:`lightcuts.report.tonemap`), cut-size
+heatmap with a colour bar, and the error statistics of an image against a reference.
 
-All writers are atomic (temporary name, then rename). Heavy imports (OpenEXR, colour, matplotlib)
+All writers are atomic (temporary name, then rename). Heavy imports (OpenEXR, matplotlib)
 happen inside the functions so that importing lightcuts stays fast.
 """
 
@@ -50,27 +51,25 @@ def read_exr(path) -> np.ndarray:
         raise LightcutsError(f"{path}: cannot read EXR ({exc})") from None
 
 
-def to_srgb8(rgb: np.ndarray, exposure: float = 0.0) -> np.ndarray:
-    """Linear RGB -> 8-bit sRGB (H, W, 3) uint8: scale by 2^exposure, sRGB OETF (colour-science), clip."""
-    import warnings
+def to_srgb8(rgb: np.ndarray, exposure: float = 0.0, op: str = "clip") -> np.ndarray:
+    """Linear RGB -> 8-bit sRGB (H, W, 3) uint8 through the tone map ``op`` after ``exposure`` stops
+    (:mod:`lightcuts.report.tonemap`)."""
+    from lightcuts.report.tonemap import srgb8
 
-    os.environ.setdefault("COLOUR_SCIENCE__FILTER_USAGE_WARNINGS", "1")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        import colour
-
-    x = np.clip(np.asarray(rgb, np.float64) * (2.0 ** exposure), 0.0, 1.0)
-    encoded = colour.cctf_encoding(x, function="sRGB")
-    return np.clip(np.round(encoded * 255.0), 0, 255).astype(np.uint8)
+    return srgb8(rgb, op, exposure)
 
 
-def write_png(path, rgb: np.ndarray, exposure: float = 0.0) -> Path:
-    """Write linear RGB (H, W, 3) as an 8-bit sRGB PNG, after ``exposure`` stops."""
+def write_png(path, rgb: np.ndarray, tonemap=None) -> Path:
+    """Write linear RGB (H, W, 3) as an 8-bit sRGB PNG through ``tonemap`` (a config's
+    ``render.tonemap``: ``type`` and ``exposure``; None: clipped at 0 stops)."""
     from PIL import Image
+
+    from lightcuts.report.tonemap import of
 
     path = Path(path)
     with atomic_path(path, suffix=".png") as tmp:
-        Image.fromarray(to_srgb8(rgb, exposure)).save(tmp, format="PNG")
+        op, exposure = of(tonemap)
+        Image.fromarray(to_srgb8(rgb, exposure, op)).save(tmp, format="PNG")
     return path
 
 
