@@ -37,6 +37,42 @@ def test_converging_run_against_the_exact_path_tracer(tmp_path):
                                                       "report.json"]
 
 
+def test_figures_leave_out_the_emitter_and_stand_beside_the_path_tracers_noise(tmp_path, capsys):
+    """The whole Cornell box, its light in view: the light's pixels are left out of the figures,
+    the path tracer's image is the mean of two independent halves, and each figure has the noise
+    those halves measure beside it."""
+    import numpy as np
+
+    from lightcuts.accel import make_caster
+    from lightcuts.commands.plan import plan_run
+    from lightcuts.config import load_config
+    from lightcuts.render.pathtrace import path_trace
+    from lightcuts.render.primary import emitter_mask
+    from lightcuts.report.images import read_exr
+
+    out, size = tmp_path / "ref", ["--set", "camera.resolution=[24,24]"]
+    assert _cli(["reference", ROOT / "configs/cornell.yaml", "--renderer", "lightcuts", "--spp", 7, "--out", out,
+                 "--no-progress", *SMALL, *size]) == 0
+    r = json.loads((out / "report.json").read_text())
+    c, pt = r["comparison"], r["path_tracer"]
+    assert pt["spp"] == 8 and pt["half_seeds"] == [1, 0]  # 7 rounded up to two halves of 4; seeds 1 and 1 ^ 1
+    cfg = load_config(ROOT / "configs/cornell.yaml", SMALL[1::2] + size[1::2])
+    scene = plan_run(cfg).scene()
+    with make_caster(scene) as caster:
+        mask = emitter_mask(scene, caster)
+        halves = [path_trace(scene, caster, spp=4, seed=s)[0] for s in (1, 0)]
+    np.testing.assert_array_equal(read_exr(out / "path.exr"), (halves[0] + halves[1]) / 2)
+    assert c["masked_pixels"] == mask.sum() > 0 and c["pixel"]["pixels"] <= 24 * 24 - mask.sum()
+    assert c["energy_ratio"] != c["energy_ratio_frame"]
+    noise = c["reference_noise"]
+    assert noise["pixel"]["pixels"] == c["pixel"]["pixels"] and noise["energy_ratio"] > 0
+    assert 0 < noise["pixel"]["median"] and 0 < noise["block8"]["median"]
+    assert "emitter" in r["emitter_mask"]
+    printed = capsys.readouterr().out
+    assert f"{mask.sum()} pixels seeing an emitter directly left out" in printed
+    assert f"median {100 * c['pixel']['median']:.2f}% (noise {100 * noise['pixel']['median']:.2f}%)" in printed
+
+
 @pytest.mark.parametrize("config, argv, message", [
     ("sun-env.yaml", [], "--renderer lightcuts: its path tracer renders emitting triangles"),
     ("cornell.yaml", ["--integrator", "direct"], "--integrator direct needs --renderer mitsuba"),
