@@ -100,6 +100,8 @@ class Comparison:
         ``cut_unit``: what the cut sizes count, the integrator's ``cut_unit`` trait)
     cut_sizes : label -> (H, W) float32 cut size per pixel, in ``report["cut_unit"]``
     images : label -> (H, W, 3) float32 linear RGB
+    reference_pixels, reference_image : (K, 2) int64 (x, y) of the sampled pixels and (K, 3) the
+        all-lights reference there, or None without the reference
     """
 
     config: object
@@ -108,6 +110,8 @@ class Comparison:
     cut_sizes: dict
     images: dict
     mitsuba_images: dict | None = None
+    reference_pixels: np.ndarray | None = None
+    reference_image: np.ndarray | None = None
 
     def title(self) -> str:
         r = self.report["rows"][0]
@@ -126,9 +130,11 @@ class Comparison:
     def save(self, folder) -> Path:
         """Write the files ``lightcuts compare`` writes into ``folder`` (replaced as a whole, its
         ``rows/`` store kept): table.md, table.csv, image-<label>.exr / .png (one tone map, the
-        config's, for every row), cutsize-<label>.png, cutsizes.png, report.json, and
-        mitsuba-*.exr / .png with the Mitsuba study. Returns the folder."""
+        config's, for every row), cutsize-<label>.png, cutsizes.png, report.json, report.html
+        (:mod:`lightcuts.report.pages`) and mitsuba-*.exr / .png with the Mitsuba study. Returns the folder."""
         from lightcuts.io import check_output_dir, output_set, save_json
+        from lightcuts.report import pages
+        from lightcuts.report.html import write_report
         from lightcuts.report.compare import file_label, write_cut_images, write_tables
         from lightcuts.report.images import write_exr, write_png
 
@@ -147,6 +153,7 @@ class Comparison:
                 write_exr(tmp / f"mitsuba-{name}.exr", image)
                 write_png(tmp / f"mitsuba-{name}.png", image, self.config.render.tonemap)
             save_json(tmp / "report.json", report)
+            write_report(tmp / "report.html", pages.compare(self, [("cut sizes", tmp / "cutsizes.png")]))
         return out
 
     def _extra(self) -> str:
@@ -433,6 +440,6 @@ def _comparison(cfg, source, results: list[dict], reference, pixels, diff, mitsu
     if mitsuba is not None:
         images = mitsuba.pop("images")
         report["mitsuba"] = mitsuba
-    return Comparison(cfg, [{k: r.get(k) for k in CSV_FIELDS} for r in rows], report,
-                      cuts,
-                      {r["label"]: x["image"] for r, x in zip(rows, results)}, images)
+    return Comparison(cfg, [{k: r.get(k) for k in CSV_FIELDS} for r in rows], report, cuts,
+                      {r["label"]: x["image"] for r, x in zip(rows, results)}, images,
+                      None if reference is None else pixels, None if reference is None else reference["image"])

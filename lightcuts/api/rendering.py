@@ -48,9 +48,12 @@ class Render:
 
     def save(self, folder) -> Path:
         """Write the files ``lightcuts render`` writes into ``folder`` (replaced as a whole, see
-        :func:`lightcuts.io.output_set`): image.exr, image.png, cutsize.png, report.json, and
-        reference.exr / reference.png if there is a reference. Returns the folder."""
+        :func:`lightcuts.io.output_set`): image.exr, image.png, cutsize.png, report.json, report.html
+        (:mod:`lightcuts.report.pages`), and reference.exr / reference.png if there is a reference.
+        Returns the folder."""
         from lightcuts.io import SUBRUN_FOLDERS, check_output_dir, output_set, save_json
+        from lightcuts.report import pages
+        from lightcuts.report.html import write_report
         from lightcuts.report.images import write_exr, write_heatmap, write_png
 
         cfg, report = self.config, self.report
@@ -65,6 +68,7 @@ class Render:
                 write_exr(tmp / "reference.exr", self.reference)
                 write_png(tmp / "reference.png", self.reference, cfg.render.tonemap)
             save_json(tmp / "report.json", report)
+            write_report(tmp / "report.html", pages.render(self))
         return out
 
     def summary(self) -> str:

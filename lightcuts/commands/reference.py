@@ -19,7 +19,8 @@ Outputs in ``renders/<name>/reference/`` (or ``--out``), one set (:func:`lightcu
 (:func:`lightcuts.report.images.compare_images`: energy ratio = mean luminance lightcuts / path
 tracer; relative error per pixel and on 8x8 block means: mean, median, p99, max), the path
 tracer's name, spp, integrator, max depth, seconds and version, lightcuts' lights, settings and
-seconds, and whether any Phong material was approximated.
+seconds, and whether any Phong material was approximated; ``report.html`` (both images in a viewer
+with the error view, the figures; :mod:`lightcuts.report.pages`).
 
 Two things keep the figures honest. Pixels that see an emitter directly
 (:func:`lightcuts.render.primary.emitter_mask`) are left out of the energy ratio and the errors
@@ -174,6 +175,8 @@ def _lightcuts_image(args, cfg, plan, scene, envmap, warmup: list) -> tuple[np.n
 def _run(args, cfg, plan, out_dir: Path, warmup: list, tracer) -> dict:
     from lightcuts import __version__
     from lightcuts.io import output_set, save_json
+    from lightcuts.report import pages
+    from lightcuts.report.html import write_report
     from lightcuts.report.images import compare_images, write_exr, write_png
 
     scene = plan.scene()
@@ -228,7 +231,10 @@ def _run(args, cfg, plan, out_dir: Path, warmup: list, tracer) -> dict:
         write_exr(tmp_dir / "lightcuts.exr", image)
         write_png(tmp_dir / "lightcuts.png", image, cfg.render.tonemap)
         save_json(tmp_dir / "report.json", report)
-    name = "Mitsuba" if tracer.name == "mitsuba" else "path tracer"
+        name = "Mitsuba" if tracer.name == "mitsuba" else "path tracer"
+        write_report(tmp_dir / "report.html", pages.reference(
+            cfg, report, {"lightcuts": image, _file(tracer): ref}, mask, _file(tracer),
+            [pages.comparison_table(comparison, name)]))
     print(f"{cfg.name}: {args.integrator}, {name} {spp} spp {t_mi:.2f} s, lightcuts {lc['render_seconds']:.2f} s")
     for line in comparison_lines(comparison, name):
         print(f"  {line}")
@@ -273,6 +279,8 @@ def _run_curve(args, cfg, plan, out_dir: Path, tracer) -> dict:
     from lightcuts import __version__
     from lightcuts.api.convergence import error_curve, long_reference
     from lightcuts.io import output_set, save_csv, save_json
+    from lightcuts.report import pages
+    from lightcuts.report.html import Table, write_report
     from lightcuts.report.images import write_exr, write_png
     from lightcuts.report.plots import loglog_panels
 
@@ -306,6 +314,13 @@ def _run_curve(args, cfg, plan, out_dir: Path, tracer) -> dict:
         loglog_panels(tmp_dir / "curve.png", panels, f"{cfg.name}: error against time ({settings}; "
                       f"reference {tracer.name} {args.spp} spp)", (10.0, 4.2))
         save_json(tmp_dir / "report.json", report)
+        cols = [(k, k, None) for k in ("method", "passes", "spp", "seconds", "energy_ratio", "pixel_median",
+                                       "block8_median")]
+        write_report(tmp_dir / "report.html", pages.reference(
+            cfg, report, {f"lightcuts, {cfg.render.passes} passes": image, f"{_file(tracer)}, {args.spp} spp": ref},
+            reference_name=f"{_file(tracer)}, {args.spp} spp",
+            tables=[Table("Error against time", cols, rows, "pixels that see an emitter directly left out")],
+            plots=[("error against time", tmp_dir / "curve.png")]))
     s = curve["slope"]
     fmt = lambda v: "n/a" if v is None else f"{v:.2f}"  # noqa: E731
     print(f"{cfg.name}: lightcuts' error against time, slope per pixel {fmt(s['pixel_median'])}, "
@@ -318,6 +333,8 @@ def _run_curve(args, cfg, plan, out_dir: Path, tracer) -> dict:
 def _write_split(args, cfg, out_dir: Path, split: dict, tracer) -> dict:
     from lightcuts import __version__
     from lightcuts.io import output_set, save_csv, save_json
+    from lightcuts.report import pages
+    from lightcuts.report.html import Table, write_report
     from lightcuts.report.images import write_exr, write_png
 
     images = split.pop("images")
@@ -327,8 +344,13 @@ def _write_split(args, cfg, out_dir: Path, split: dict, tracer) -> dict:
     with output_set(out_dir) as tmp_dir:
         write_exr(tmp_dir / f"{_file(tracer)}.exr", images["path"])
         write_png(tmp_dir / f"{_file(tracer)}.png", images["path"], cfg.render.tonemap)
-        save_csv(tmp_dir / "split.csv", rows, ["label", "energy_ratio", "pixel_median", "block8_median", "seconds",
-                                               "integrator", "diffuse", "overrides"])
+        fields = ["label", "energy_ratio", "pixel_median", "block8_median", "seconds", "integrator", "diffuse",
+                  "overrides"]
+        save_csv(tmp_dir / "split.csv", rows, fields)
         save_json(tmp_dir / "report.json", report)
+        write_report(tmp_dir / "report.html", pages.reference(
+            cfg, report, {f"{_file(tracer)} ({key})": im for key, im in images.items()},
+            tables=[Table("Energy split", [(k, k, None) for k in fields], rows,
+                          "pixels that see an emitter directly left out")]))
     print(f"{cfg.name}: energy split written -> {out_dir}")
     return report

@@ -292,7 +292,7 @@ def test_output_set_replaces_old_folder_whole(workdir, capsys):
     finally:
         os.umask(old_umask)
     names = sorted(p.name for p in (folder / "old").iterdir())
-    assert names == ["cutsize.png", "image.exr", "image.png", "report.json"]
+    assert names == ["cutsize.png", "image.exr", "image.png", "report.html", "report.json"]
     assert all((folder / "old" / n).stat().st_mode & 0o777 == 0o644 for n in names)
     assert (folder / "old" / "image.png").read_bytes() != OLD_SET["image.png"]
     assert [p.name for p in folder.iterdir() if p.name.startswith(".")] == []

@@ -42,6 +42,21 @@ def test_each_row_image_as_exr_and_png_with_one_tone_map(compared):
     assert not np.array_equal(images["agglomerative"], images["divisive-3d"])  # each row its own image
 
 
+def test_report_html_holds_each_rows_image_and_cut_sizes_and_the_sampled_reference(compared):
+    from lightcuts.report.html import viewer_values
+
+    out, report = compared
+    text = (out / "report.html").read_text()
+    data = json.loads(text.split('id="lc-data">', 1)[1].split("</script>", 1)[0])
+    labels = BUILDERS.split(",")
+    assert [layer["name"] for layer in data["layers"]] == labels + [f"cut: {b}" for b in labels]
+    assert data["tonemap"] == {"type": "aces", "exposure": 1.5} and data["scales"]["cut"]["max"] == report["cut_scale_max"]
+    assert data["sample"]["xy"]["shape"] == [200, 2] and data["reference"] is None
+    assert len(data["layers"][0]["values"]["b64"]) < 40 * 40 * 6 * 4 / 3 + 4  # float16, deflated
+    stored = np.load(out / "rows" / "agglomerative.npz")["image"]
+    assert viewer_values(stored).shape == (40, 40, 3)
+
+
 def test_default_difference_panel_is_of_two_rows_that_differ(compared, tmp_path, capsys):
     out, report = compared
     # divisive-6d is the baseline; agglomerative, the first row, differs from it

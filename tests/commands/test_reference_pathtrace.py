@@ -34,7 +34,7 @@ def test_converging_run_against_the_exact_path_tracer(tmp_path):
     assert r["lightcuts"]["passes"] == 4 and r["lightcuts"]["compensation"] is True
     assert abs(r["comparison"]["energy_ratio"] - 1) < 0.03, r["comparison"]
     assert sorted(p.name for p in out.iterdir()) == ["lightcuts.exr", "lightcuts.png", "path.exr", "path.png",
-                                                      "report.json"]
+                                                      "report.html", "report.json"]
 
 
 def test_figures_leave_out_the_emitter_and_stand_beside_the_path_tracers_noise(tmp_path, capsys):
@@ -68,6 +68,10 @@ def test_figures_leave_out_the_emitter_and_stand_beside_the_path_tracers_noise(t
     assert noise["pixel"]["pixels"] == c["pixel"]["pixels"] and noise["energy_ratio"] > 0
     assert 0 < noise["pixel"]["median"] and 0 < noise["block8"]["median"]
     assert "emitter" in r["emitter_mask"]
+    text = (out / "report.html").read_text()
+    data = json.loads(text.split('id="lc-data">', 1)[1].split("</script>", 1)[0])
+    assert [layer["name"] for layer in data["layers"]] == ["lightcuts", "path"] and data["reference"] == 1
+    assert data["mask"]["shape"] == [24, 24] and "noise" in text
     printed = capsys.readouterr().out
     assert f"{mask.sum()} pixels seeing an emitter directly left out" in printed
     assert f"median {100 * c['pixel']['median']:.2f}% (noise {100 * noise['pixel']['median']:.2f}%)" in printed

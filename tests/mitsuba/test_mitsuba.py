@@ -136,7 +136,7 @@ def test_cornell_direct_light_matches_mitsuba(mi, tmp_path, capsys):
     assert abs(c["energy_ratio"] - 1) < 0.01, c
     assert c["block8"]["median"] < 0.02, c
     assert sorted(p.name for p in out.iterdir()) == ["lightcuts.exr", "lightcuts.png", "mitsuba.exr",
-                                                      "mitsuba.png", "report.json"]
+                                                      "mitsuba.png", "report.html", "report.json"]
     assert "energy lightcuts/Mitsuba" in capsys.readouterr().out
 
 
@@ -252,7 +252,7 @@ def test_reference_curve_measures_both_renderers_at_the_same_times(mi, tmp_path,
     csv = (out / "curve.csv").read_text().splitlines()
     assert csv[0].startswith("method,passes,spp,seconds") and len(csv) == 7
     assert sorted(p.name for p in out.iterdir()) == ["curve.csv", "curve.png", "lightcuts.exr", "lightcuts.png",
-                                                      "mitsuba.exr", "mitsuba.png", "report.json"]
+                                                      "mitsuba.exr", "mitsuba.png", "report.html", "report.json"]
     assert "slope" in capsys.readouterr().out
 
 
