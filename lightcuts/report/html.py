@@ -100,8 +100,8 @@ def _scale_log2(a: np.ndarray) -> int:
 
 
 def encode(a: np.ndarray, dtype: str = "f16") -> dict:
-    """An array for the page: {"dtype", "shape", "scale_log2", "b64"}; f16 and f32 values are
-    divided by 2**scale_log2 (f16: the largest finite value lands in [2^14, 2^15]), u8 are bytes."""
+    """An array for the page: {"dtype", "shape", "scale_log2", "b64"}; f16 values are divided by
+    2**scale_log2 first, so that the largest finite one lands in [2^14, 2^15] (0 for f32 and u8)."""
     a = np.asarray(a)
     k = _scale_log2(a.astype(np.float64)) if dtype == "f16" else 0
     typed = {"f16": np.float16, "f32": np.float32, "u8": np.uint8}[dtype]
@@ -157,7 +157,7 @@ _VIEWER_HTML = """<h2>Images</h2>
 <div id="lc-stage"><canvas id="lc-canvas" width="960" height="540"></canvas></div>
 <div class="bar"><canvas id="lc-legend" width="256" height="30"></canvas><span id="lc-legend-text"></span></div>
 <div id="lc-readout"></div>
-<p class="keys">Keys: 1-9 image, e error view, [ ] exposure -/+ 0.5 stop, + - zoom, f fit; wheel zooms, drag pans.</p>
+<p class="keys">Keys: 1-9, 0 image, e error view, [ ] exposure -/+ 0.5 stop, + - zoom, f fit; wheel zooms, drag pans.</p>
 """
 
 

@@ -130,7 +130,7 @@
     const bar = $("lc-layers");
     layers.forEach((l, i) => {
       const b = document.createElement("button");
-      b.textContent = (i < 9 ? `${i + 1} ` : "") + l.name;
+      b.textContent = (i < 10 ? `${(i + 1) % 10} ` : "") + l.name;
       b.title = l.kind === "hdr" ? "linear image" : `${l.name} (${D.scales[l.scale].unit})`;
       b.onclick = () => { S.layer = i; redraw(); };
       bar.appendChild(b);
@@ -347,7 +347,8 @@
     document.addEventListener("keydown", (ev) => {
       if (ev.target.tagName === "INPUT" || ev.target.tagName === "SELECT" || ev.ctrlKey || ev.metaKey || ev.altKey) return;
       const k = ev.key;
-      if (k >= "1" && k <= "9" && +k <= layers.length) { S.layer = +k - 1; redraw(); }
+      const n = k === "0" ? 10 : +k;  // keys 1-9, then 0 for the tenth
+      if (k.length === 1 && k >= "0" && k <= "9" && n <= layers.length) { S.layer = n - 1; redraw(); }
       else if (k === "e" && !errBox.disabled) { S.error = !S.error; redraw(); }
       else if (k === "f") fit();
       else if (k === "+" || k === "=") zoomAt(1.5, canvas.width / 2, canvas.height / 2);
