@@ -5,7 +5,7 @@ row store, so a second run renders nothing) and a render's page, each written ``
 
 The first run renders the compare's rows (the config's size, the default five rows, 1,024 reference
 pixels) into ``--store``; later runs read them. Prints the page's size, what an image weighs in it,
-and the median time of the page alone (data encoding and HTML; the PNG plot is read from disk).
+and the median time of the page alone (data encoding and HTML).
 """
 
 from __future__ import annotations
@@ -23,8 +23,8 @@ from common import load_average, timed  # noqa: E402
 
 def main(argv=None) -> int:
     import lightcuts
+    from lightcuts.config import load_config
     from lightcuts.report import pages
-    from lightcuts.report.compare import write_cut_images
     from lightcuts.report.html import encode, write_report
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -33,11 +33,10 @@ def main(argv=None) -> int:
     ap.add_argument("--set", dest="overrides", action="append", default=[])
     ap.add_argument("--repeats", type=int, default=5)
     args = ap.parse_args(argv)
-    cfg = lightcuts.load_config(args.config, args.overrides)
+    cfg = load_config(args.config, args.overrides)
     c = lightcuts.compare(cfg, store=args.store, progress=False)
     out = Path(tempfile.mkdtemp())
-    write_cut_images(out, c.cut_sizes, None, c.title())
-    page = lambda: write_report(out / "report.html", pages.compare(c, [("cut sizes", out / "cutsizes.png")]))  # noqa: E731
+    page = lambda: write_report(out / "report.html", pages.compare(c))  # noqa: E731
     seconds, _, stats = timed(page, args.repeats, warmup=True)
     h, w = next(iter(c.images.values())).shape[:2]
     image = len(encode(next(iter(c.images.values())))["b64"])

@@ -153,7 +153,7 @@ class Comparison:
                 write_exr(tmp / f"mitsuba-{name}.exr", image)
                 write_png(tmp / f"mitsuba-{name}.png", image, self.config.render.tonemap)
             save_json(tmp / "report.json", report)
-            write_report(tmp / "report.html", pages.compare(self, [("cut sizes", tmp / "cutsizes.png")]))
+            write_report(tmp / "report.html", pages.compare(self))
         return out
 
     def _extra(self) -> str:

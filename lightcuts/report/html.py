@@ -11,8 +11,10 @@ a reference known only at a sample of pixels (compare's), shown as squares over 
 Pixels of the ``mask`` (those that see an emitter directly) are grey there.
 
 Images travel as float16 (about 3 significant digits: the error view resolves 0.1%), divided by a
-power of two so that the largest finite value fits, their bytes shuffled (the high bytes of all
-values, then the low ones) and deflated, in base64: :func:`encode`. The browser inflates them
+power of two so that the largest finite value fits, their bit patterns XORed with the first image
+of the same size (an image equal to it, such as the agglomerative-heap row's beside agglomerative's,
+then costs next to nothing; one that differs, about as much as alone), their bytes shuffled
+(the high bytes of all values, then the low ones) and deflated, in base64: :func:`encode`. The browser inflates them
 (``DecompressionStream``, in every browser since 2023). :func:`viewer_values` gives the values the
 viewer computes with, for tests.
 """
@@ -49,11 +51,13 @@ class Layer:
 
 @dataclass
 class Scale:
-    """A colour scale of scalar layers: [0, ``max``] through matplotlib's colour map ``map``."""
+    """A colour scale of scalar layers: [``min``, ``max``] through matplotlib's colour map ``map``
+    (index floor(256 x), as matplotlib's own lookup)."""
 
     max: float
     unit: str
     map: str = "inferno"
+    min: float = 0.0
 
 
 @dataclass
@@ -99,16 +103,25 @@ def _scale_log2(a: np.ndarray) -> int:
     return math.ceil(math.log2(top)) - 15 if top > 0 else 0
 
 
-def encode(a: np.ndarray, dtype: str = "f16") -> dict:
-    """An array for the page: {"dtype", "shape", "scale_log2", "b64"}; f16 values are divided by
-    2**scale_log2 first, so that the largest finite one lands in [2^14, 2^15] (0 for f32 and u8)."""
-    a = np.asarray(a)
+def _typed(a: np.ndarray, dtype: str) -> tuple[np.ndarray, int]:
+    """(a in ``dtype``, scale_log2): f16 values divided by 2**scale_log2 first, so that the largest
+    finite one lands in [2^14, 2^15] (0 for f32 and u8)."""
     k = _scale_log2(a.astype(np.float64)) if dtype == "f16" else 0
     typed = {"f16": np.float16, "f32": np.float32, "u8": np.uint8}[dtype]
     with np.errstate(over="ignore", invalid="ignore"):
-        raw = np.ascontiguousarray((a / 2.0 ** k if k else a).astype(typed)).view(np.uint8)
-    shuffled = raw.reshape(-1, np.dtype(typed).itemsize).T.tobytes()
-    return {"dtype": dtype, "shape": list(a.shape), "scale_log2": k,
+        return np.ascontiguousarray((a / 2.0 ** k if k else a).astype(typed)), k
+
+
+def encode(a: np.ndarray, dtype: str = "f16", base: tuple[int, np.ndarray] | None = None) -> dict:
+    """An array for the page: {"dtype", "shape", "scale_log2", "b64", "xor"} (:func:`_typed`).
+    base : (its index in the page, an f16 array of the same shape), or None: this array's float16
+        bit patterns are XORed with base's (recorded as "xor"): zeros where the two are equal."""
+    typed, k = _typed(np.asarray(a), dtype)
+    raw = typed.view(np.uint16) if dtype == "f16" else typed.view(np.uint8)
+    if base is not None:
+        raw = raw ^ _typed(np.asarray(base[1]), "f16")[0].view(np.uint16)
+    shuffled = raw.view(np.uint8).reshape(-1, typed.itemsize).T.tobytes()
+    return {"dtype": dtype, "shape": list(typed.shape), "scale_log2": k, "xor": None if base is None else base[0],
             "b64": base64.b64encode(zlib.compress(shuffled, LEVEL)).decode("ascii")}
 
 
@@ -169,10 +182,13 @@ def page_html(page: Page) -> str:
     data = {"layers": [], "scales": {k: vars(s) for k, s in page.scales.items()}, "tonemap": {"type": op,
             "exposure": exposure}, "reference": page.reference, "origin": list(page.origin), "mask": None,
             "sample": None, "colormaps": {}}
-    for layer in page.layers:
+    first = {}  # shape -> (index, values) of the first image of that shape, the others' XOR base
+    for i, layer in enumerate(page.layers):
         v = np.asarray(layer.values)
+        base = first.setdefault(v.shape, (i, v)) if v.ndim == 3 else None
         data["layers"].append({"name": layer.name, "kind": "hdr" if v.ndim == 3 else "scalar", "scale": layer.scale,
-                               "w": int(v.shape[1]), "h": int(v.shape[0]), "values": encode(v)})
+                               "w": int(v.shape[1]), "h": int(v.shape[0]),
+                               "values": encode(v, base=base if base and base[0] != i else None)})
     if page.layers:
         names = {"diverging": "RdBu_r", **{s.map: s.map for s in page.scales.values()}}
         data["colormaps"] = {k: base64.b64encode(colormap(m)).decode("ascii") for k, m in names.items()}

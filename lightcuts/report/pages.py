@@ -3,9 +3,10 @@ the command writes anyway: its images, rows, plots, config and report.json.
 
 * ``render``: the image, the all-lights reference (``--reference``; the error view's default), the
   cut-size map; the run's figures.
-* ``compare``: each row's image and cut-size map (one colour scale), Mitsuba's images; the error
-  view against the all-lights reference where it exists, at the sampled pixels only (squares over
-  the dimmed image), or against another row's image; the Fig. 8 table, ``cutsizes.png``.
+* ``compare``: each row's image and cut-size map (one colour scale), the difference of the two
+  ``--diff`` rows' maps, Mitsuba's images; the error view against the all-lights reference where it
+  exists, at the sampled pixels only (squares over the dimmed image), or against another row's
+  image; the Fig. 8 table.
 * ``reference``: lightcuts' and the path tracer's images, the mask of pixels that see an emitter;
   the figures beside the path tracer's own noise; with ``--curve`` the curve's rows and plot, with
   ``--split`` its rows.
@@ -55,17 +56,27 @@ def render(r) -> Page:
                 **_common(r.config, rep))
 
 
-def compare(c, plots: list) -> Page:
-    """The page of ``lightcuts compare`` (a :class:`lightcuts.api.comparing.Comparison`; ``plots``:
-    (caption, PNG path))."""
-    from lightcuts.report.compare import COLUMNS, cut_unit
+def compare(c) -> Page:
+    """The page of ``lightcuts compare`` (a :class:`lightcuts.api.comparing.Comparison`). The
+    difference panel of ``cutsizes.png`` is a layer of its own (the PNG is not embedded: the viewer
+    shows each of its maps)."""
+    import numpy as np
+
+    from lightcuts.report.compare import COLUMNS, cut_unit, shared_max
 
     rep, rows = c.report, c.report["rows"]
+    unit = cut_unit(rows)
     labels = [r["label"] for r in rows]
     layers = [Layer(label, c.images[label]) for label in labels]
     layers += [Layer(f"cut: {label}", c.cut_sizes[label], "cut") for label in labels]
+    scales = {"cut": Scale(shared_max(c.cut_sizes), f"cut size ({unit or 'nodes'})")}
+    d = rep.get("diff")
+    if d:
+        diff = c.cut_sizes[d[0]].astype(np.float64) - c.cut_sizes[d[1]]
+        lim = max(1.0, float(np.abs(diff).max()))
+        layers.append(Layer(f"cut: {d[0]} - {d[1]}", diff, "diff"))
+        scales["diff"] = Scale(lim, f"cut size difference ({unit or 'nodes'})", "RdBu_r", -lim)
     layers += [Layer(f"mitsuba: {name}", image) for name, image in (c.mitsuba_images or {}).items()]
-    unit = cut_unit(rows)
     notes = []
     sample = None
     if c.reference_image is not None:
@@ -73,16 +84,14 @@ def compare(c, plots: list) -> Page:
         sample = (c.reference_pixels - [x0, y0], c.reference_image)
         notes.append(f"The all-lights reference is known at {len(c.reference_pixels):,} sampled pixels (the table's "
                      "error columns): the error view against 'reference' shows them as squares.")
-    d = rep.get("diff")
     notes.append(f"Difference panel: {d[0]} - {d[1]} ({rep['diff_chosen']})." if d else
                  f"No difference panel ({rep.get('diff_chosen')}).")
     tables = [Table(c.title(), [(k, f"{h} ({unit})" if unit and k in ("cut_mean", "cut_max") else h, f)
                                 for k, h, f in COLUMNS], rows)]
     if "mitsuba" in rep:
         tables.append(_mitsuba_table(rep["mitsuba"]))
-    return Page(f"{c.config.name}: compare", c.title(), notes=notes, layers=layers,
-                scales={"cut": Scale(rep.get("cut_scale_max") or 1.0, f"cut size ({unit or 'nodes'})")},
-                sample=sample, tables=tables, plots=plots, **_common(c.config, rep))
+    return Page(f"{c.config.name}: compare", c.title(), notes=notes, layers=layers, scales=scales, sample=sample,
+                tables=tables, **_common(c.config, rep))
 
 
 def _mitsuba_table(m: dict) -> Table:

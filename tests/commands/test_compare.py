@@ -49,7 +49,10 @@ def test_report_html_holds_each_rows_image_and_cut_sizes_and_the_sampled_referen
     text = (out / "report.html").read_text()
     data = json.loads(text.split('id="lc-data">', 1)[1].split("</script>", 1)[0])
     labels = BUILDERS.split(",")
-    assert [layer["name"] for layer in data["layers"]] == labels + [f"cut: {b}" for b in labels]
+    assert [layer["name"] for layer in data["layers"]] == (labels + [f"cut: {b}" for b in labels]
+                                                           + ["cut: agglomerative - divisive-6d"])
+    diff = data["scales"]["diff"]
+    assert diff["map"] == "RdBu_r" and diff["min"] == -diff["max"] and diff["max"] >= 1
     assert data["tonemap"] == {"type": "aces", "exposure": 1.5} and data["scales"]["cut"]["max"] == report["cut_scale_max"]
     assert data["sample"]["xy"]["shape"] == [200, 2] and data["reference"] is None
     assert len(data["layers"][0]["values"]["b64"]) < 40 * 40 * 6 * 4 / 3 + 4  # float16, deflated

@@ -15,12 +15,36 @@ def _data(text: str) -> dict:
     return json.loads(text.split('id="lc-data">', 1)[1].split("</script>", 1)[0])
 
 
-def _decode(a: dict) -> np.ndarray:
-    """encode undone: inflate, unshuffle the bytes, multiply by the power of two."""
+def _decode(a: dict, bits: np.ndarray | None = None) -> np.ndarray:
+    """encode undone: inflate, unshuffle the bytes, XOR with the base's float16 ``bits``, multiply
+    by the power of two."""
     typed = {"f16": np.float16, "f32": np.float32, "u8": np.uint8}[a["dtype"]]
     raw = np.frombuffer(zlib.decompress(base64.b64decode(a["b64"])), np.uint8)
     values = raw.reshape(np.dtype(typed).itemsize, -1).T.copy().view(typed).reshape(a["shape"])
+    if bits is not None:
+        values = (values.view(np.uint16) ^ bits).view(np.float16)
     return values.astype(np.float64) * 2.0 ** a["scale_log2"]
+
+
+def _bits(a: dict) -> np.ndarray:
+    raw = np.frombuffer(zlib.decompress(base64.b64decode(a["b64"])), np.uint8)
+    return raw.reshape(2, -1).T.copy().view(np.uint16).reshape(a["shape"])
+
+
+def test_images_are_stored_as_bit_differences_from_the_first():
+    """An image equal to the first (two builders that make the same tree) costs next to nothing;
+    one that differs decodes to itself."""
+    rng = np.random.default_rng(2)
+    first = (rng.random((48, 64, 3)) * 3).astype(np.float32)
+    other = first * (1 + 0.01 * rng.standard_normal(first.shape)).astype(np.float32)
+    page = Page("t", layers=[Layer("a", first), Layer("cut", first[..., 0], "c"), Layer("same", first.copy()),
+                             Layer("other", other)], scales={"c": Scale(3.0, "x")})
+    layers = _data(page_html(page))["layers"]
+    assert [layer["values"]["xor"] for layer in layers] == [None, None, 0, 0]  # scalar maps stay whole
+    base = _bits(layers[0]["values"])
+    for layer, image in zip(layers[2:], (first, other)):
+        np.testing.assert_array_equal(_decode(layer["values"], base), viewer_values(image))
+    assert len(layers[2]["values"]["b64"]) < 0.01 * len(layers[0]["values"]["b64"])
 
 
 @pytest.mark.parametrize("top", [1e-9, 0.7, 65504.0, 3e6, 1e30])

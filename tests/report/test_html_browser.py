@@ -128,7 +128,7 @@ def _lum(a):
     return 0.2126 * a[..., 0] + 0.7152 * a[..., 1] + 0.0722 * a[..., 2]
 
 
-@pytest.mark.parametrize("kind, images, tables", [("render", 3, 1), ("compare", 6, 1), ("reference", 2, 1),
+@pytest.mark.parametrize("kind, images, tables", [("render", 3, 1), ("compare", 7, 1), ("reference", 2, 1),
                                                   ("accel", 0, 1), ("scaling", 0, 1)])
 def test_each_kind_of_report_opens_offline_without_console_errors(browser, runs, kind, images, tables):
     _open(browser, runs[kind])
@@ -179,6 +179,24 @@ def test_number_keys_and_buttons_flip_the_images(browser, runs):
     assert (_shown(browser, w, h) == cut_colours(cuts, report["cut_size_max"])).all()
     _key(browser, "1")
     assert (_shown(browser, w, h) == srgb8(viewer_values(read_exr(folder / "image.exr")), "reinhard", 3.0)).all()
+    assert _errors(browser) == []
+
+
+def test_compare_rows_flip_to_their_own_pixels(browser, runs):
+    """The rows after the first travel as bit differences from it: each decodes to its own image."""
+    folder = runs["compare"]
+    _open(browser, folder)
+    _click(browser, "lc-one")
+    for key, label in (("3", "divisive-3d"), ("2", "divisive-6d"), ("1", "agglomerative")):
+        _key(browser, key)
+        image = viewer_values(read_exr(folder / f"image-{label}.exr"))
+        assert (_shown(browser, 40, 30) == srgb8(image)).all(), label
+    # the seventh: the difference of the --diff rows' cut sizes on a symmetric diverging scale
+    a, b = json.loads((folder / "report.json").read_text())["diff"]
+    diff = np.load(folder / "rows" / f"{a}.npz")["cut"].astype(np.float64) - np.load(folder / "rows" / f"{b}.npz")["cut"]
+    lim = max(1.0, np.abs(diff).max())
+    _key(browser, "7")
+    assert (_shown(browser, 40, 30) == _diverging(viewer_values(diff), lim)).all()
     assert _errors(browser) == []
 
 

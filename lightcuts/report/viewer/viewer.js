@@ -76,7 +76,9 @@
   }
 
   // An array of html.py's encode: {dtype, shape, scale_log2, b64} -> Float32Array (or Uint8Array).
-  async function decode(a) {
+  // `bits`: the float16 bit patterns this one's were XORed with (html.py's encode with `base`),
+  // or null; the array's own bit patterns are left in decode.bits.
+  async function decode(a, bits) {
     const raw = await inflate(bytesOf(a.b64));
     const size = { f16: 2, f32: 4, u8: 1 }[a.dtype];
     const n = raw.length / size, plain = new Uint8Array(raw.length);
@@ -88,7 +90,9 @@
     const out = new Float32Array(n), scale = Math.pow(2, a.scale_log2 || 0);
     if (a.dtype === "f16") {
       const u = new Uint16Array(plain.buffer);
+      if (bits) for (let i = 0; i < n; i++) u[i] ^= bits[i];
       for (let i = 0; i < n; i++) out[i] = HALF[u[i]] * scale;
+      decode.bits = u;
     } else {
       const f = new Float32Array(plain.buffer);
       for (let i = 0; i < n; i++) out[i] = f[i] * scale;
@@ -106,7 +110,10 @@
     tables.forEach(sortable);
     if (!D.layers || !D.layers.length) { document.body.dataset.ready = "1"; return; }
     const layers = [];
-    for (const l of D.layers) layers.push({ ...l, v: await decode(l.values) });
+    for (const l of D.layers) {
+      const v = await decode(l.values, l.values.xor != null ? layers[l.values.xor].bits : null);
+      layers.push({ ...l, v, bits: decode.bits });
+    }
     const maps = {};
     for (const [name, b64] of Object.entries(D.colormaps)) maps[name] = bytesOf(b64);
     const mask = D.mask ? await decode(D.mask) : null;
@@ -212,7 +219,7 @@
       } else {
         const sc = D.scales[l.scale], map = maps[sc.map];
         for (let i = 0; i < W * H; i++) {
-          const x = Math.min(Math.max(finite(l.v[i]) / sc.max, 0), 1);
+          const x = Math.min(Math.max((finite(l.v[i]) - sc.min) / (sc.max - sc.min), 0), 1);
           const j = Math.min(255, Math.floor(x * 256));
           d[4 * i] = map[3 * j]; d[4 * i + 1] = map[3 * j + 1]; d[4 * i + 2] = map[3 * j + 2]; d[4 * i + 3] = 255;
         }
@@ -248,7 +255,7 @@
           : "(L - L_ref) / L_ref at the reference's pixels (squares); the image dimmed";
       } else if (l.kind === "scalar") {
         const sc = D.scales[l.scale];
-        map = maps[sc.map]; lo = "0"; hi = `${+sc.max.toPrecision(4)}`;
+        map = maps[sc.map]; lo = `${+sc.min.toPrecision(4)}`; hi = `${+sc.max.toPrecision(4)}`;
         $("lc-legend-text").textContent = sc.unit;
       } else {
         $("lc-legend-text").textContent = `${S.op}, ${S.exposure >= 0 ? "+" : ""}${S.exposure} stops`;
