@@ -41,8 +41,9 @@ def main(argv=None) -> int:
     h, w = next(iter(c.images.values())).shape[:2]
     image = len(encode(next(iter(c.images.values())))["b64"])
     cut = len(encode(next(iter(c.cut_sizes.values())))["b64"])
-    print(f"load {load_average():.2f}; compare of {len(c.rows)} rows at {w}x{h}: report.html {stats['bytes'] / 2**20:.2f} MB "
-          f"(an image {image / 2**20:.2f} MB, a cut-size map {cut / 2**20:.2f} MB in base64), "
+    print(f"load {load_average():.2f}; compare of {len(c.rows)} rows at {w}x{h}: "
+          f"report.html {stats['bytes'] / 2**20:.2f} MB (an image {image / 2**20:.2f} MB, "
+          f"a cut-size map {cut / 2**20:.2f} MB in base64), "
           f"{seconds:.3f} s (median of {args.repeats})")
     r = lightcuts.render(cfg, progress=False)
     seconds, _, stats = timed(lambda: write_report(out / "render.html", pages.render(r)), args.repeats, warmup=True)

@@ -134,8 +134,8 @@ class Comparison:
         (:mod:`lightcuts.report.pages`) and mitsuba-*.exr / .png with the Mitsuba study. Returns the folder."""
         from lightcuts.io import check_output_dir, output_set, save_json
         from lightcuts.report import pages
-        from lightcuts.report.html import write_report
         from lightcuts.report.compare import file_label, write_cut_images, write_tables
+        from lightcuts.report.html import write_report
         from lightcuts.report.images import write_exr, write_png
 
         out = check_output_dir(Path(folder), "folder", ALLOWED)
@@ -197,8 +197,8 @@ def compare_run(cfg, plans, labels, pixels, store, *, source: str | None = None,
     the Mitsuba study with a long render of that many spp, and with ``mitsuba_passes`` > 0 the
     converging render of the study's row (:func:`converging_config`) at its own time; ``source``:
     recorded in the report; ``diff``: the two rows of the cut-size difference panel (None: chosen
-    by :func:`default_diff` once the rows are done). ``runner``: computes the reference and the rows the store lacks
-    on a cluster (``runner.compare_rows(cfg, plans, labels, shared, store, pixels, progress) ->
+    by :func:`default_diff` once the rows are done). ``runner``: computes the reference and the
+    rows the store lacks on a cluster (``runner.compare_rows(cfg, plans, labels, shared, store, pixels, progress) ->
     (reference, results)``, :class:`lightcuts.distributed.runner.ClusterRunner`), their values those
     of this function's own; its ``record()`` becomes report.json's ``cluster``."""
     from lightcuts.commands.warmup import finish_warmup

@@ -148,10 +148,9 @@ def _file(tracer) -> str:
 def _lightcuts_image(args, cfg, plan, scene, envmap, warmup: list) -> tuple[np.ndarray, dict, np.ndarray]:
     """lightcuts' image of the run (all its passes), its figures (lights, seconds) and the pixels
     that see an emitter directly (:func:`lightcuts.render.primary.emitter_mask`)."""
-    from lightcuts.render.primary import emitter_mask
-
     from lightcuts.api.passes import render_passes
     from lightcuts.commands.warmup import finish_warmup, start_render_warmup
+    from lightcuts.render.primary import emitter_mask
 
     t0 = time.perf_counter()
     if plan.caster.trait("warm_render_kernel", False):
@@ -207,6 +206,7 @@ def _run(args, cfg, plan, out_dir: Path, warmup: list, tracer) -> dict:
     spp = half * (1 + (halves is not None))
 
     comparison = compare_images(image, ref, mask=mask, halves=halves)
+    name = "Mitsuba" if tracer.name == "mitsuba" else "path tracer"
     described = {**tracer.describe(), "spp": spp, "half_seeds": [cfg.seed, cfg.seed ^ 1] if halves else None,
                  "max_depth": args.max_depth, "load_seconds": t_load,
                  "render_seconds": t_mi}
@@ -231,7 +231,6 @@ def _run(args, cfg, plan, out_dir: Path, warmup: list, tracer) -> dict:
         write_exr(tmp_dir / "lightcuts.exr", image)
         write_png(tmp_dir / "lightcuts.png", image, cfg.render.tonemap)
         save_json(tmp_dir / "report.json", report)
-        name = "Mitsuba" if tracer.name == "mitsuba" else "path tracer"
         write_report(tmp_dir / "report.html", pages.reference(
             cfg, report, {"lightcuts": image, _file(tracer): ref}, mask, _file(tracer),
             [pages.comparison_table(comparison, name)]))

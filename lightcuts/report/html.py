@@ -165,12 +165,14 @@ _VIEWER_HTML = """<h2>Images</h2>
  <label><input type="checkbox" id="lc-error"> error view</label>
  <label>against <select id="lc-against"></select></label>
  <label>range <select id="lc-range"></select></label>
- <button id="lc-fit">fit</button><button id="lc-one">1:1</button><button id="lc-zoom-in">+</button><button id="lc-zoom-out">&minus;</button>
+ <button id="lc-fit">fit</button><button id="lc-one">1:1</button>
+ <button id="lc-zoom-in">+</button><button id="lc-zoom-out">&minus;</button>
 </div>
 <div id="lc-stage"><canvas id="lc-canvas" width="960" height="540"></canvas></div>
 <div class="bar"><canvas id="lc-legend" width="256" height="30"></canvas><span id="lc-legend-text"></span></div>
 <div id="lc-readout"></div>
-<p class="keys">Keys: 1-9, 0 image, e error view, [ ] exposure -/+ 0.5 stop, + - zoom, f fit; wheel zooms, drag pans.</p>
+<p class="keys">Keys: 1-9, 0 image, e error view, [ ] exposure -/+ 0.5 stop, + - zoom, f fit;
+ wheel zooms, drag pans.</p>
 """
 
 

@@ -51,25 +51,16 @@ def read_exr(path) -> np.ndarray:
         raise LightcutsError(f"{path}: cannot read EXR ({exc})") from None
 
 
-def to_srgb8(rgb: np.ndarray, exposure: float = 0.0, op: str = "clip") -> np.ndarray:
-    """Linear RGB -> 8-bit sRGB (H, W, 3) uint8 through the tone map ``op`` after ``exposure`` stops
-    (:mod:`lightcuts.report.tonemap`)."""
-    from lightcuts.report.tonemap import srgb8
-
-    return srgb8(rgb, op, exposure)
-
-
 def write_png(path, rgb: np.ndarray, tonemap=None) -> Path:
     """Write linear RGB (H, W, 3) as an 8-bit sRGB PNG through ``tonemap`` (a config's
     ``render.tonemap``: ``type`` and ``exposure``; None: clipped at 0 stops)."""
     from PIL import Image
 
-    from lightcuts.report.tonemap import of
+    from lightcuts.report.tonemap import of, srgb8
 
     path = Path(path)
     with atomic_path(path, suffix=".png") as tmp:
-        op, exposure = of(tonemap)
-        Image.fromarray(to_srgb8(rgb, exposure, op)).save(tmp, format="PNG")
+        Image.fromarray(srgb8(rgb, *of(tonemap))).save(tmp, format="PNG")
     return path
 
 

@@ -104,7 +104,8 @@ def _mitsuba_table(m: dict) -> Table:
         r.update({f"{part}_{k}": r.get(part, {}).get(k) for part in ("pixel", "block8") for k in ("median", "p99")})
     cols = [("renderer", "Renderer", None), ("seconds", "Image time (s)", "{:.2f}"),
             ("energy_ratio", "Energy ratio", "{:.4f}")]
-    cols += [(f"{p}_{k}", f"{n} {k}", "{:.2%}") for p, n in (("pixel", "Pixel"), ("block8", "8x8")) for k in ("median", "p99")]
+    cols += [(f"{p}_{k}", f"{n} {k}", "{:.2%}") for p, n in (("pixel", "Pixel"), ("block8", "8x8"))
+             for k in ("median", "p99")]
     return Table(f"Against Mitsuba's path tracer at {m['reference_spp']} spp, at equal time", cols, rows)
 
 
@@ -132,8 +133,9 @@ def reference(cfg, report: dict, images: dict, mask=None, reference_name: str | 
     (H, W, 3), in viewer order; ``reference_name``: the one the error view compares with."""
     names = list(images)
     layers = [Layer(n, images[n]) for n in names]
-    return Page(f"{cfg.name}: reference", f"against {report.get('path_tracer', report.get('reference', {})).get('renderer', '')}"
-                f" path tracing", layers=layers, reference=names.index(reference_name) if reference_name else None,
+    tracer = report.get("path_tracer", report.get("reference", {})).get("renderer", "")
+    return Page(f"{cfg.name}: reference", f"against {tracer} path tracing", layers=layers,
+                reference=names.index(reference_name) if reference_name else None,
                 mask=mask, tables=list(tables), plots=list(plots), **_common(cfg, report))
 
 

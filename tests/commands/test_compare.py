@@ -53,7 +53,8 @@ def test_report_html_holds_each_rows_image_and_cut_sizes_and_the_sampled_referen
                                                            + ["cut: agglomerative - divisive-6d"])
     diff = data["scales"]["diff"]
     assert diff["map"] == "RdBu_r" and diff["min"] == -diff["max"] and diff["max"] >= 1
-    assert data["tonemap"] == {"type": "aces", "exposure": 1.5} and data["scales"]["cut"]["max"] == report["cut_scale_max"]
+    assert data["tonemap"] == {"type": "aces", "exposure": 1.5}
+    assert data["scales"]["cut"]["max"] == report["cut_scale_max"]
     assert data["sample"]["xy"]["shape"] == [200, 2] and data["reference"] is None
     assert len(data["layers"][0]["values"]["b64"]) < 40 * 40 * 6 * 4 / 3 + 4  # float16, deflated
     stored = np.load(out / "rows" / "agglomerative.npz")["image"]

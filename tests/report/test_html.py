@@ -102,6 +102,7 @@ def test_the_viewer_files_are_package_data():
     root = Path(__file__).parents[2]
     patterns = tomllib.loads((root / "pyproject.toml").read_text())["tool"]["setuptools"]["package-data"][
         "lightcuts.report"]
-    files = [p.relative_to(root / "lightcuts" / "report").as_posix() for p in (root / "lightcuts/report/viewer").iterdir()]
+    viewer = root / "lightcuts" / "report" / "viewer"
+    files = [f"viewer/{p.name}" for p in viewer.iterdir()]
     assert sorted(files) == ["viewer/viewer.css", "viewer/viewer.js"]
     assert all(any(fnmatch.fnmatch(f, pat) for pat in patterns) for f in files)

@@ -193,7 +193,8 @@ def test_compare_rows_flip_to_their_own_pixels(browser, runs):
         assert (_shown(browser, 40, 30) == srgb8(image)).all(), label
     # the seventh: the difference of the --diff rows' cut sizes on a symmetric diverging scale
     a, b = json.loads((folder / "report.json").read_text())["diff"]
-    diff = np.load(folder / "rows" / f"{a}.npz")["cut"].astype(np.float64) - np.load(folder / "rows" / f"{b}.npz")["cut"]
+    cut = {k: np.load(folder / "rows" / f"{k}.npz")["cut"].astype(np.float64) for k in (a, b)}
+    diff = cut[a] - cut[b]
     lim = max(1.0, np.abs(diff).max())
     _key(browser, "7")
     assert (_shown(browser, 40, 30) == _diverging(viewer_values(diff), lim)).all()
@@ -335,12 +336,12 @@ def test_javascript_and_python_tone_maps_agree(browser, runs, op):
     _open(browser, runs["render"])
     values = [[0.0, 0.0, 0.0], [0.18, 0.5, 0.9], [3.0, 0.7, 0.2], [0.002, 0.001, 0.0005], [40.0, 10.0, 1.0],
               [1e-7, 5.0, 1e6], [float("nan"), float("inf"), -1.0]]
+    as_json = [[str(x) if not np.isfinite(x) else x for x in v] for v in values]  # JSON has no NaN, inf
     for exposure in (0.0, 1.3, -2.7):
         got = browser.execute_script(
-            "const out = []; for (const v of arguments[0]) out.push(Array.from(window.lcViewer.toneMap("
-            "v[0] === null ? NaN : v[0], v[1] === null ? Infinity : v[1], v[2], arguments[1], Math.pow(2, arguments[2]),"
-            " [0, 0, 0]))); return out;", [[None if np.isnan(x) else None if np.isinf(x) else x for x in v]
-                                          for v in values], op, exposure)
+            "const f = (x) => typeof x === 'string' ? Number(x.replace('inf', 'Infinity')) : x;"
+            "return arguments[0].map((v) => Array.from(window.lcViewer.toneMap(f(v[0]), f(v[1]), f(v[2]),"
+            " arguments[1], Math.pow(2, arguments[2]), [0, 0, 0])));", as_json, op, exposure)
         expected = srgb8(np.array([values]), op, exposure)[0]
         assert np.array_equal(np.array(got), expected), (op, exposure)
 
@@ -349,7 +350,8 @@ def test_tables_sort_by_a_column(browser, runs):
     _open(browser, runs["compare"])
     header = browser.find_elements("css selector", "table.lc-sortable th")[3]  # Avg cutsize
     assert header.text.startswith("Avg cutsize")
-    values = "return Array.from(document.querySelector('table.lc-sortable').tBodies[0].rows).map(r => +r.cells[3].dataset.v)"
+    values = ("return Array.from(document.querySelector('table.lc-sortable').tBodies[0].rows)"
+              ".map(r => +r.cells[3].dataset.v)")
     header.click()
     up = browser.execute_script(values)
     header.click()
