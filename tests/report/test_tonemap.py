@@ -118,3 +118,21 @@ def test_convert_writes_the_tone_mapped_png(tmp_path, capsys):
     assert main(["convert", str(tmp_path / "im.exr"), "--out", str(tmp_path / "sub" / "x.png")]) == 0
     np.testing.assert_array_equal(np.asarray(Image.open(tmp_path / "sub" / "x.png")), srgb8(rgb))
     assert "9x7, reinhard, exposure -1" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--out", "x.jpg"], "--out 'x.jpg': must end in .png"),
+    (["--exposure", "1e4"], "--exposure 10000.0: must be within [-1000, 1000] stops"),
+    (["--out", "sub.png"], "--out 'sub.png': is a folder"),
+])
+def test_convert_refuses_bad_options_before_writing(tmp_path, monkeypatch, capsys, argv, message):
+    from lightcuts.cli import main
+    from lightcuts.report.images import write_exr
+
+    monkeypatch.chdir(tmp_path)
+    write_exr("im.exr", np.ones((2, 3, 3), np.float32))
+    (tmp_path / "sub.png").mkdir()
+    assert main(["convert", "im.exr", *argv]) == 2
+    assert capsys.readouterr().err.strip().splitlines() == [f"error: {message}"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["im.exr", "sub.png"]
+    assert not any((tmp_path / "sub.png").iterdir())
