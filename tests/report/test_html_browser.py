@@ -29,6 +29,8 @@ CHROMIUM, CHROMEDRIVER = "/usr/bin/chromium", "/usr/bin/chromedriver"
 FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
          "--disable-background-networking", "--disable-component-update", "--disable-sync", "--window-size=1280,1000")
 SMALL = ["--set", "lights.indirect.count=1500", "--set", "lights.direct.count=128", "--no-progress"]
+#: They start a browser: left out of the quick loop (pytest -m "not slow").
+pytestmark = pytest.mark.slow
 
 
 @pytest.fixture(scope="module")
