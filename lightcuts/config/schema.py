@@ -286,6 +286,14 @@ class RenderConfig(Strict):
     clamp: Clamp = Clamp()
     # The PNGs' and the report viewer's tone map (the EXR is linear): a name or {type: NAME, exposure: STOPS}.
     tonemap: ToneMap = ToneMap()
+
+    @model_validator(mode="before")
+    @classmethod
+    def _exposure_moved(cls, v):
+        if isinstance(v, dict) and "exposure" in v:
+            raise ValueError("exposure: set render.tonemap.exposure (render.tonemap: {type: clip, exposure: STOPS})")
+        return v
+
     # A caster name, or {type: NAME, param: value, ...}; resolved and checked by the plan step
     # (lightcuts.accel.registry.RAY_CASTERS declares each caster's parameters).
     ray_caster: PluginSpec = DEFAULT_RAY_CASTER
@@ -303,13 +311,6 @@ class RenderConfig(Strict):
     representatives: Literal["fixed", "stochastic"] = "fixed"
     # Passes averaged, each with its own lights, trees and eye-ray samples (seeds from ``seed``).
     passes: Annotated[int, Field(ge=1, le=MAX_PASSES)] = 1
-
-    @model_validator(mode="before")
-    @classmethod
-    def _exposure_moved(cls, v):
-        if isinstance(v, dict) and "exposure" in v:
-            raise ValueError("exposure: set render.tonemap.exposure (render.tonemap: {type: clip, exposure: STOPS})")
-        return v
 
 
 class RunConfig(Strict):
