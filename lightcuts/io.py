@@ -22,7 +22,7 @@ from lightcuts.errors import LightcutsError
 
 #: The files a run may write into its output folder: a folder holding anything else is not
 #: replaced (an ``--out`` naming a folder of the user's is refused before any work).
-OUTPUT_FILES = frozenset({"image.exr", "image.png", "cutsize.png", "report.json", "reference.exr",
+OUTPUT_FILES = frozenset({"image.exr", "image.png", "cutsize.png", "report.json", "report.html", "reference.exr",
                           "reference.png", "scaling.csv", "scaling.png", "render_scaling.csv", "render_scaling.png",
                           "gather_scaling.csv", "gather_scaling.png",
                           "compare", "accel", "reference", "mitsuba.exr", "mitsuba.png", "lightcuts.exr",

@@ -171,10 +171,8 @@ def compare(config, builders=None, metrics=None, *, pixels: int = DEFAULT_PIXELS
     labels = [label for label, _ in rows]
     width, height = image_size(cfg)
     sample = sample_pixels(width, height, cfg.render.crop, pixels, cfg.seed) if pixels else None
-    diff = tuple(labels[:2]) if len(labels) >= 2 else None
-
     def run(runner=None):
-        return compare_run(cfg, plans, labels, sample, RowStore(store, force), source=source, diff=diff,
+        return compare_run(cfg, plans, labels, sample, RowStore(store, force), source=source,
                            mitsuba_spp=mitsuba_spp, progress=progress, runner=runner)
 
     if cluster is None:

@@ -13,7 +13,7 @@ config's resolution through the caster's batch API (median of ``--repeats``):
 Every caster answers the same rays; the rays whose hit triangle (or occlusion) differs from the
 first caster's are counted (``eye_mismatch``, ``shadow_mismatch``), so a faster caster cannot be a
 wrong one. Outputs in ``renders/<name>/accel/`` (or ``--out``), one set: ``table.md``,
-``table.csv``, ``report.json`` (rows, config, machine).
+``table.csv``, ``report.json`` (rows, config, machine), ``report.html``.
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ from lightcuts.limits import MAX_REPEATS
 
 #: Eye rays per pixel of the shadows image, each with one shadow ray.
 SHADOW_SPP = 16
-ALLOWED = ("table.md", "table.csv", "report.json", "sweep.csv", "sweep.png")
+ALLOWED = ("table.md", "table.csv", "report.json", "report.html", "sweep.csv", "sweep.png")
 #: Room counts of ``--sweep rooms``.
 SWEEP_ROOMS = "1,2,4,6,8"
 #: The casters of ``--sweep rooms`` by default: the 1995 paper's structures, the BVHs and Embree.
@@ -212,7 +212,9 @@ def _title(cfg, scene) -> str:
 
 def _run(args, cfg, plan, entries, out: Path) -> dict:
     from lightcuts.io import output_set, save_json
+    from lightcuts.report import pages
     from lightcuts.report.accel import format_markdown, write_tables
+    from lightcuts.report.html import write_report
     from lightcuts.report.compare import machine
 
     rows, scene = measure(args, cfg, plan, entries)
@@ -223,6 +225,7 @@ def _run(args, cfg, plan, entries, out: Path) -> dict:
     with output_set(out) as tmp:
         write_tables(tmp, rows, title)
         save_json(tmp / "report.json", report)
+        write_report(tmp / "report.html", pages.accel(cfg, report))
     print(format_markdown(rows, title), end="")
     print(f"-> {out}")
     return report
@@ -233,7 +236,9 @@ def _run_sweep(args, cfg, entries, out: Path) -> dict:
     from lightcuts.pipeline.plan import plan_run
     from lightcuts.config import load_config
     from lightcuts.io import atomic_path, output_set, save_csv, save_json
+    from lightcuts.report import pages
     from lightcuts.report.accel import format_markdown, format_sweep, plot_sweep
+    from lightcuts.report.html import write_report
     from lightcuts.report.compare import machine
 
     counts = parse_counts(args.rooms)
@@ -256,6 +261,7 @@ def _run_sweep(args, cfg, entries, out: Path) -> dict:
         save_csv(tmp / "sweep.csv", [{k: r.get(k) for k in keys} for r in rows], keys)
         plot_sweep(tmp / "sweep.png", rows, f"{cfg.name}: growing scenes ({', '.join(map(str, counts))} rooms)")
         save_json(tmp / "report.json", report)
+        write_report(tmp / "report.html", pages.accel(cfg, report, [("growing scenes", tmp / "sweep.png")]))
     print(summary, end="")
     print(f"-> {out}")
     return report

@@ -11,8 +11,10 @@ on one seeded sample of ``--pixels`` pixels, the same for every row (the referen
 mean (:func:`lightcuts.report.images.relative_error`).
 
 Outputs in ``renders/<name>/compare/`` (or ``--out``): ``table.md``, ``table.csv``, ``report.json``
-(rows, config, machine), ``cutsize-<label>.png`` per row and ``cutsizes.png``
-(:mod:`lightcuts.report.compare`). Finished rows and the reference are kept in ``rows/`` as soon as
+(rows, config, machine), per row ``image-<label>.exr`` / ``.png`` (the config's ``render.tonemap``
+for every row) and ``cutsize-<label>.png``, ``cutsizes.png`` with the difference panel of two rows
+(``--diff``; by default :func:`lightcuts.pipeline.comparing.default_diff`: two rows whose cut sizes
+differ) (:mod:`lightcuts.report.compare`). Finished rows and the reference are kept in ``rows/`` as soon as
 they are done (one .npz each, written atomically, with a key of everything they depend on), so an
 interrupted compare keeps them and the next run with the same config and seed only computes what is
 missing or changed; ``--force`` recomputes everything.
@@ -50,7 +52,9 @@ def add_parser(sub) -> None:
                         "(default the config's)")
     p.add_argument("--pixels", type=int, default=DEFAULT_PIXELS,
                    help=f"pixels in the seeded sample the error is measured on (default {DEFAULT_PIXELS}; 0: none)")
-    p.add_argument("--diff", default=None, help="a,b: the rows of the signed cut-size difference (default the first two)")
+    p.add_argument("--diff", default=None,
+                   help="a,b: the rows of the signed cut-size difference a - b (default: the first row whose cut sizes "
+                        "differ from the baseline divisive-6d's, minus divisive-6d; see default_diff)")
     p.add_argument("--force", action="store_true", help="recompute rows already finished")
     p.add_argument("--mitsuba", action="store_true",
                    help="add Mitsuba 3's path tracer run for the agglomerative row's image time, both against "
@@ -102,9 +106,8 @@ def run_compare(args) -> dict:
         except LightcutsError as exc:
             raise LightcutsError(f"--mitsuba-passes {args.mitsuba_passes}: the converging render's {exc}") from None
     labels = [label for label, _ in rows]
-    if args.diff is None:
-        diff = tuple(labels[:2]) if len(labels) >= 2 else None
-    else:
+    diff = None  # chosen when the rows are done (lightcuts.pipeline.comparing.default_diff)
+    if args.diff is not None:
         diff = tuple(names(args.diff, "--diff"))
         if len(diff) != 2 or any(d not in labels for d in diff):
             raise LightcutsError(f"--diff {args.diff!r}: expected two different rows of {', '.join(labels)}")
@@ -131,5 +134,8 @@ def run_compare(args) -> dict:
             result = compare(runner)
     result.save(out)
     print(result.markdown(), end="")
+    d = result.report["diff"]
+    print(f"difference panel: {d[0]} - {d[1]} ({result.report['diff_chosen']})" if d else
+          f"difference panel: none ({result.report['diff_chosen']})")
     print(f"-> {out}")
     return result.report

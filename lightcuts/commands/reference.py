@@ -19,7 +19,16 @@ Outputs in ``renders/<name>/reference/`` (or ``--out``), one set (:func:`lightcu
 (:func:`lightcuts.report.images.compare_images`: energy ratio = mean luminance lightcuts / path
 tracer; relative error per pixel and on 8x8 block means: mean, median, p99, max), the path
 tracer's name, spp, integrator, max depth, seconds and version, lightcuts' lights, settings and
-seconds, and whether any Phong material was approximated.
+seconds, and whether any Phong material was approximated; ``report.html`` (both images in a viewer
+with the error view, the figures; :mod:`lightcuts.report.pages`).
+
+Two things keep the figures honest. Pixels that see an emitter directly
+(:func:`lightcuts.render.primary.emitter_mask`) are left out of the energy ratio and the errors
+(``energy_ratio_frame`` keeps the whole frame's): their radiance is the emitter's in both images and
+can hold most of the frame's energy. And the path tracer's image is the mean of two independent
+halves of ``--spp`` (rounded up to even; seeds ``seed`` and ``seed ^ 1``), whose difference gives
+each figure's value for the path tracer's own noise (``reference_noise``): an error close to it is
+mostly that noise, not lightcuts' error. Both are printed side by side.
 
 ``--curve`` (path tracing only) instead measures error against time
 (:func:`lightcuts.pipeline.convergence.error_curve`): lightcuts' passes 1, 2, 4, ... ``--passes`` (the
@@ -138,10 +147,12 @@ def _file(tracer) -> str:
     return "mitsuba" if tracer.name == "mitsuba" else "path"
 
 
-def _lightcuts_image(args, cfg, plan, scene, envmap, warmup: list) -> tuple[np.ndarray, dict]:
-    """lightcuts' image of the run (all its passes) and its figures (lights, seconds)."""
+def _lightcuts_image(args, cfg, plan, scene, envmap, warmup: list) -> tuple[np.ndarray, dict, np.ndarray]:
+    """lightcuts' image of the run (all its passes), its figures (lights, seconds) and the pixels
+    that see an emitter directly (:func:`lightcuts.render.primary.emitter_mask`)."""
     from lightcuts.pipeline.passes import render_passes
     from lightcuts.pipeline.warmup import finish_warmup, start_render_warmup
+    from lightcuts.render.primary import emitter_mask
 
     t0 = time.perf_counter()
     if plan.caster.trait("warm_render_kernel", False):
@@ -153,39 +164,53 @@ def _lightcuts_image(args, cfg, plan, scene, envmap, warmup: list) -> tuple[np.n
         result = render_passes(cfg, plan, scene, caster, envmap, desc=f"{cfg.name}: lightcuts",
                                progress=not args.no_progress, lights=light_sets, trees=trees,
                                before_render=lambda: finish_warmup(warmup[0] if warmup else None))
+        mask = emitter_mask(scene, caster, cfg.render.crop, envmap is not None)
     return result.image, {"lights": {typ: len(ls) for typ, ls in light_sets.items()},
                           "lights_indirect": int(sum(int(ls.indirect.sum()) for ls in light_sets.values())),
                           "eps": cfg.render.eps, "spp": cfg.render.spp, "compensation": cfg.render.compensation,
                           "continuation_rays": cfg.render.continuation_rays, "representatives": cfg.render.representatives, "passes": cfg.render.passes,
                           "preprocess_seconds": t_pre, "render_seconds": result.render_seconds,
-                          "seconds": result.seconds, "cut_size_mean": float(result.cut_size.mean())}
+                          "seconds": result.seconds, "cut_size_mean": float(result.cut_size.mean())}, mask
 
 
 def _run(args, cfg, plan, out_dir: Path, warmup: list, tracer) -> dict:
     from lightcuts import __version__
     from lightcuts.io import output_set, save_json
+    from lightcuts.report import pages
+    from lightcuts.report.html import write_report
     from lightcuts.report.images import compare_images, write_exr, write_png
 
     scene = plan.scene()
     envmap = plan.environment()
-    image, lc = _lightcuts_image(args, cfg, plan, scene, envmap, warmup)
+    image, lc, mask = _lightcuts_image(args, cfg, plan, scene, envmap, warmup)
 
+    # The path tracer's image is the mean of two independent halves (seeds seed and seed ^ 1): their
+    # difference measures its own noise (compare_images, "reference_noise").
+    half = (args.spp + 1) // 2 if args.spp > 1 else 1
     t0 = time.perf_counter()
     if tracer.name == "mitsuba":
         from lightcuts.mitsuba.render import load_scene, render_loaded, sample_count
 
-        mi_scene = load_scene(cfg, scene, envmap, spp=args.spp, integrator=args.integrator, max_depth=args.max_depth)
+        mi_scene = load_scene(cfg, scene, envmap, spp=half, integrator=args.integrator, max_depth=args.max_depth)
         t_load = time.perf_counter() - t0
-        spp = sample_count(mi_scene)
-        print(f"{cfg.name}: Mitsuba {args.integrator}, {spp} spp ...", flush=True)
-        ref, t_mi = render_loaded(mi_scene, cfg.seed)
+        half = sample_count(mi_scene)
+        render = lambda seed: render_loaded(mi_scene, seed)  # noqa: E731
+        print(f"{cfg.name}: Mitsuba {args.integrator}, {half * (1 + (args.spp > 1))} spp ...", flush=True)
     else:
-        spp, t_load = args.spp, 0.0
-        print(f"{cfg.name}: lightcuts' path tracer, {spp} spp ...", flush=True)
-        ref, t_mi = tracer.render(cfg, scene, envmap, spp, cfg.seed)
+        t_load = 0.0
+        render = lambda seed: tracer.render(cfg, scene, envmap, half, seed)  # noqa: E731
+        print(f"{cfg.name}: lightcuts' path tracer, {half * (1 + (args.spp > 1))} spp ...", flush=True)
+    ref, t_mi = render(cfg.seed)
+    halves = None
+    if args.spp > 1:
+        other, t_other = render(cfg.seed ^ 1)
+        halves, ref, t_mi = (ref, other), (ref + other) / 2, t_mi + t_other
+    spp = half * (1 + (halves is not None))
 
-    comparison = compare_images(image, ref)
-    described = {**tracer.describe(), "spp": spp, "max_depth": args.max_depth, "load_seconds": t_load,
+    comparison = compare_images(image, ref, mask=mask, halves=halves)
+    name = "Mitsuba" if tracer.name == "mitsuba" else "path tracer"
+    described = {**tracer.describe(), "spp": spp, "half_seeds": [cfg.seed, cfg.seed ^ 1] if halves else None,
+                 "max_depth": args.max_depth, "load_seconds": t_load,
                  "render_seconds": t_mi}
     report = {
         "lightcuts_version": __version__,
@@ -196,6 +221,7 @@ def _run(args, cfg, plan, out_dir: Path, warmup: list, tracer) -> dict:
         "resolution": [int(image.shape[1]), int(image.shape[0])],
         "crop": cfg.render.crop,
         "comparison": comparison,
+        "emitter_mask": EMITTER_MASK,
         "path_tracer": described,
         **({"mitsuba": described} if tracer.name == "mitsuba" else {}),
         "lightcuts": {**lc, "direct_only": args.integrator == "direct"},
@@ -203,26 +229,59 @@ def _run(args, cfg, plan, out_dir: Path, warmup: list, tracer) -> dict:
     }
     with output_set(out_dir) as tmp_dir:
         write_exr(tmp_dir / f"{_file(tracer)}.exr", ref)
-        write_png(tmp_dir / f"{_file(tracer)}.png", ref, cfg.render.exposure)
+        write_png(tmp_dir / f"{_file(tracer)}.png", ref, cfg.render.tonemap)
         write_exr(tmp_dir / "lightcuts.exr", image)
-        write_png(tmp_dir / "lightcuts.png", image, cfg.render.exposure)
+        write_png(tmp_dir / "lightcuts.png", image, cfg.render.tonemap)
         save_json(tmp_dir / "report.json", report)
-    ratio = comparison["energy_ratio"]
-    e, b = comparison["pixel"], comparison.get("block8")
-    name = "Mitsuba" if tracer.name == "mitsuba" else "path tracer"
-    line = (f"{cfg.name}: {args.integrator}, {name} {spp} spp {t_mi:.2f} s, lightcuts {lc['render_seconds']:.2f} s; "
-            + (f"energy lightcuts/{name} {ratio:.4f}" if ratio is not None else f"the {name}'s image is black"))
-    line += f"; relative error per pixel median {100 * e['median']:.2f}% p99 {100 * e['p99']:.2f}%"
-    if b is not None:
-        line += f", 8x8 blocks median {100 * b['median']:.2f}% p99 {100 * b['p99']:.2f}%"
-    print(f"{line} -> {out_dir}")
+        write_report(tmp_dir / "report.html", pages.reference(
+            cfg, report, {"lightcuts": image, _file(tracer): ref}, mask, _file(tracer),
+            [pages.comparison_table(comparison, name)]))
+    print(f"{cfg.name}: {args.integrator}, {name} {spp} spp {t_mi:.2f} s, lightcuts {lc['render_seconds']:.2f} s")
+    for line in comparison_lines(comparison, name):
+        print(f"  {line}")
+    print(f"-> {out_dir}")
     return report
+
+
+#: How report.json describes the mask of pixels left out of the comparison's figures.
+EMITTER_MASK = ("pixels that see an emitter (or the environment) directly, left out of the energy ratio and the "
+                "errors: one pinhole ray through each pixel's centre and corners (lightcuts.render.primary)")
+
+
+def comparison_lines(c: dict, name: str) -> list[str]:
+    """The figures of :func:`lightcuts.report.images.compare_images` as lines for the terminal, each
+    error beside the reference's own noise where it was measured."""
+    noise = c.get("reference_noise", {})
+
+    def pct(part: str, key: str) -> str:
+        v = f"{100 * c[part][key]:.2f}%"
+        if part not in noise:
+            return v
+        n = noise[part][key]  # |A - B| / (A + B) per pixel: 100% at most, so 100% means at least that
+        return v + (" (noise >= 100%)" if n >= 1.0 else f" (noise {100 * n:.2f}%)")
+
+    ratio = c["energy_ratio"]
+    masked = c["masked_pixels"]
+    lines = [(f"energy lightcuts/{name} {ratio:.4f}" if ratio is not None else f"the {name}'s image is black")
+             + (f" +- {noise['energy_ratio']:.4f} (the {name}'s noise)" if noise.get("energy_ratio") else "")
+             + f"; whole frame {c['energy_ratio_frame'] or 0:.4f}"
+             + f"; {masked} pixels seeing an emitter directly left out of every figure"]
+    lines.append(f"relative error per pixel: median {pct('pixel', 'median')}, p99 {pct('pixel', 'p99')}")
+    if "block8" in c:
+        lines.append(f"relative error of 8x8 block means: median {pct('block8', 'median')}, "
+                     f"p99 {pct('block8', 'p99')}")
+    if noise:
+        lines.append(f"(noise: the error an exact image would show against this {name} image, from its two "
+                     "independent halves)")
+    return lines
 
 
 def _run_curve(args, cfg, plan, out_dir: Path, tracer) -> dict:
     from lightcuts import __version__
     from lightcuts.pipeline.convergence import error_curve, long_reference
     from lightcuts.io import output_set, save_csv, save_json
+    from lightcuts.report import pages
+    from lightcuts.report.html import Table, write_report
     from lightcuts.report.images import write_exr, write_png
     from lightcuts.report.plots import loglog_panels
 
@@ -245,17 +304,24 @@ def _run_curve(args, cfg, plan, out_dir: Path, tracer) -> dict:
               "reference": {**tracer.describe(), "spp": args.spp, "seconds": t_ref},
               "lightcuts": {"passes": cfg.render.passes, "spp": cfg.render.spp, "eps": cfg.render.eps,
                             "compensation": cfg.render.compensation, "representatives": cfg.render.representatives},
-              **curve}
+              "emitter_mask": EMITTER_MASK, **curve}
     with output_set(out_dir) as tmp_dir:
         write_exr(tmp_dir / f"{_file(tracer)}.exr", ref)
-        write_png(tmp_dir / f"{_file(tracer)}.png", ref, cfg.render.exposure)
+        write_png(tmp_dir / f"{_file(tracer)}.png", ref, cfg.render.tonemap)
         write_exr(tmp_dir / "lightcuts.exr", image)
-        write_png(tmp_dir / "lightcuts.png", image, cfg.render.exposure)
+        write_png(tmp_dir / "lightcuts.png", image, cfg.render.tonemap)
         save_csv(tmp_dir / "curve.csv", rows, ["method", "passes", "spp", "seconds", "energy_ratio", "pixel_median",
                                                "block8_median"])
         loglog_panels(tmp_dir / "curve.png", panels, f"{cfg.name}: error against time ({settings}; "
                       f"reference {tracer.name} {args.spp} spp)", (10.0, 4.2))
         save_json(tmp_dir / "report.json", report)
+        cols = [(k, k, None) for k in ("method", "passes", "spp", "seconds", "energy_ratio", "pixel_median",
+                                       "block8_median")]
+        write_report(tmp_dir / "report.html", pages.reference(
+            cfg, report, {f"lightcuts, {cfg.render.passes} passes": image, f"{_file(tracer)}, {args.spp} spp": ref},
+            reference_name=f"{_file(tracer)}, {args.spp} spp",
+            tables=[Table("Error against time", cols, rows, "pixels that see an emitter directly left out")],
+            plots=[("error against time", tmp_dir / "curve.png")]))
     s = curve["slope"]
     fmt = lambda v: "n/a" if v is None else f"{v:.2f}"  # noqa: E731
     print(f"{cfg.name}: lightcuts' error against time, slope per pixel {fmt(s['pixel_median'])}, "
@@ -268,17 +334,24 @@ def _run_curve(args, cfg, plan, out_dir: Path, tracer) -> dict:
 def _write_split(args, cfg, out_dir: Path, split: dict, tracer) -> dict:
     from lightcuts import __version__
     from lightcuts.io import output_set, save_csv, save_json
+    from lightcuts.report import pages
+    from lightcuts.report.html import Table, write_report
     from lightcuts.report.images import write_exr, write_png
 
     images = split.pop("images")
     rows = [{**r, "overrides": " ".join(r["overrides"])} for r in split["rows"]]
     report = {"lightcuts_version": __version__, "config": str(Path(args.config)), "name": cfg.name, "seed": cfg.seed,
-              "path_tracer": {**tracer.describe(), "spp": args.spp}, **split}
+              "path_tracer": {**tracer.describe(), "spp": args.spp}, "emitter_mask": EMITTER_MASK, **split}
     with output_set(out_dir) as tmp_dir:
         write_exr(tmp_dir / f"{_file(tracer)}.exr", images["path"])
-        write_png(tmp_dir / f"{_file(tracer)}.png", images["path"], cfg.render.exposure)
-        save_csv(tmp_dir / "split.csv", rows, ["label", "energy_ratio", "pixel_median", "block8_median", "seconds",
-                                               "integrator", "diffuse", "overrides"])
+        write_png(tmp_dir / f"{_file(tracer)}.png", images["path"], cfg.render.tonemap)
+        fields = ["label", "energy_ratio", "pixel_median", "block8_median", "seconds", "integrator", "diffuse",
+                  "overrides"]
+        save_csv(tmp_dir / "split.csv", rows, fields)
         save_json(tmp_dir / "report.json", report)
+        write_report(tmp_dir / "report.html", pages.reference(
+            cfg, report, {f"{_file(tracer)} ({key})": im for key, im in images.items()},
+            tables=[Table("Energy split", [(k, k, None) for k in fields], rows,
+                          "pixels that see an emitter directly left out")]))
     print(f"{cfg.name}: energy split written -> {out_dir}")
     return report

@@ -9,7 +9,8 @@ reads. Outputs, written as one set (:func:`lightcuts.io.output_set`) to ``--out`
 
 - ``scaling.csv``: n_requested, n_lights, builder, median_s, min_s, repeats, depth;
 - ``scaling.png``: log-log build time against N per builder, O(N) and O(N^2) trend lines, and each
-  builder's fitted exponent in the legend.
+  builder's fitted exponent in the legend;
+- ``report.html``: the tables and plots, config and machine (:mod:`lightcuts.report.pages`).
 
 With ``--render`` (default sizes 10K, 30K, 100K, 300K and 1M) every tree also renders the config's
 image (after an untimed one-pixel render that loads the render kernel), the 2005 paper's point that
@@ -144,6 +145,8 @@ def run_scaling(args) -> list[dict]:
     from lightcuts.pipeline.plan import plan_run
     from lightcuts.config import load_config
     from lightcuts.io import check_output_dir, output_set, save_csv
+    from lightcuts.report import pages
+    from lightcuts.report.html import write_report
     from lightcuts.report.scaling import (CSV_FIELDS, RENDER_CSV_FIELDS, format_render_table, format_table,
                                           plot_render_scaling, plot_scaling)
 
@@ -197,6 +200,9 @@ def run_scaling(args) -> list[dict]:
             save_csv(tmp / "render_scaling.csv", render_rows, RENDER_CSV_FIELDS)
             plot_render_scaling(tmp / "render_scaling.png", render_rows,
                                 f"{cfg.name}: {scene.camera.width}x{scene.camera.height}, eps {cfg.render.eps:g}")
+        tables = [("Build time", CSV_FIELDS, rows)] + ([("Render", RENDER_CSV_FIELDS, render_rows)] if render else [])
+        plots = [("build time", tmp / "scaling.png")] + ([("render", tmp / "render_scaling.png")] if render else [])
+        write_report(tmp / "report.html", pages.scaling(cfg, tables, plots))
     print(format_table(rows))
     if render:
         print(format_render_table(render_rows))

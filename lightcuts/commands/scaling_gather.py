@@ -17,7 +17,7 @@ mean cut per eye ray times G), (gather, light) pairs for ``multidimensional``; `
 the relative luminance difference of the multidimensional image from the lightcut's at the same G
 (:func:`lightcuts.report.images.relative_error`; blank on the lightcuts rows), 0 up to rounding at
 G = 1, where both compute the same cut. ``gather_scaling.png``: log-log image time and cut per pixel
-against G, each integrator's fitted exponent in the legend. The two files are the run's output set
+against G, each integrator's fitted exponent in the legend; ``report.html``. The files are the run's output set
 (:func:`lightcuts.io.output_set`): they replace the folder's previous set, build scaling's included.
 
 A study of its own: not combined with ``--sizes``, ``--render``, ``--builders`` or ``--repeats``
@@ -73,6 +73,8 @@ def run_gather(args, gathers: list[int]) -> list[dict]:
     the rows (also written to ``gather_scaling.csv``)."""
     from lightcuts.pipeline.timing import progress_bar, render_timed
     from lightcuts.io import check_output_dir, output_set, save_csv
+    from lightcuts.report import pages
+    from lightcuts.report.html import write_report
     from lightcuts.report.images import relative_error
     from lightcuts.report.scaling import GATHER_CSV_FIELDS, format_gather_table, plot_gather_scaling
 
@@ -112,6 +114,8 @@ def run_gather(args, gathers: list[int]) -> list[dict]:
     with output_set(out) as tmp:
         save_csv(tmp / "gather_scaling.csv", rows, GATHER_CSV_FIELDS)
         plot_gather_scaling(tmp / "gather_scaling.png", rows, title)
+        write_report(tmp / "report.html", pages.scaling(cfg, [("Gather points", GATHER_CSV_FIELDS, rows)],
+                                                        [("gather points", tmp / "gather_scaling.png")]))
     print(format_gather_table(rows))
     print(f"-> {out}")
     return rows

@@ -292,6 +292,20 @@ class Clamp(Strict):
     min_distance: Annotated[float, Field(ge=0, le=MAX_COORD)] = 0.05
 
 
+class ToneMap(Strict):
+    """How the PNGs and the HTML report's viewer show the linear image: an operator of
+    lightcuts.report.tonemap.OPERATORS after ``exposure`` stops; a bare name means that operator at 0 stops."""
+
+    type: Literal["clip", "reinhard", "aces", "hable"] = "clip"
+    # Stops; 2**exposure must be a normal float64.
+    exposure: Annotated[float, Field(ge=-MAX_EXPOSURE, le=MAX_EXPOSURE)] = 0.0
+
+    @model_validator(mode="before")
+    @classmethod
+    def _name(cls, v):
+        return {"type": v} if isinstance(v, str) else v
+
+
 class RenderConfig(Strict):
     # Eye rays per pixel (multidimensional: gather points), at most MAX_SPP (per-thread scratch, time).
     spp: Annotated[int, Field(ge=1, le=MAX_SPP)] = 1
@@ -299,8 +313,16 @@ class RenderConfig(Strict):
     eps: Annotated[float, Field(gt=0, le=1)] = DEFAULT_EPS
     max_cut: Annotated[int, Field(ge=1, le=MAX_CUT)] = DEFAULT_MAX_CUT
     clamp: Clamp = Clamp()
-    # Stops, applied to the PNG only; 2**exposure must be a normal float64.
-    exposure: Annotated[float, Field(ge=-MAX_EXPOSURE, le=MAX_EXPOSURE)] = 0.0
+    # The PNGs' and the report viewer's tone map (the EXR is linear): a name or {type: NAME, exposure: STOPS}.
+    tonemap: ToneMap = ToneMap()
+
+    @model_validator(mode="before")
+    @classmethod
+    def _exposure_moved(cls, v):
+        if isinstance(v, dict) and "exposure" in v:
+            raise ValueError("exposure: set render.tonemap.exposure (render.tonemap: {type: clip, exposure: STOPS})")
+        return v
+
     # A caster name, or {type: NAME, param: value, ...}; resolved and checked by the plan step
     # (lightcuts.accel.registry.RAY_CASTERS declares each caster's parameters).
     ray_caster: PluginSpec = DEFAULT_RAY_CASTER

@@ -28,8 +28,8 @@ DEFAULT_PIXELS = 1024
 #: Samples per pixel of the long Mitsuba path-traced render both equal-time images are measured against.
 DEFAULT_MITSUBA_SPP = 1024
 #: What a compare folder may hold (shell patterns): its own outputs and its row store.
-ALLOWED = ("table.md", "table.csv", "report.json", "cutsizes.png", "cutsize-*.png", "rows", "mitsuba-*.exr",
-           "mitsuba-*.png")
+ALLOWED = ("table.md", "table.csv", "report.json", "report.html", "cutsizes.png", "cutsize-*.png", "image-*.exr",
+           "image-*.png", "rows", "mitsuba-*.exr", "mitsuba-*.png")
 #: Lights per type on which each builder's kernels are loaded (or compiled) before the timed build.
 _WARM_LIGHTS = 64
 
@@ -109,6 +109,8 @@ class Comparison:
         ``cut_unit``: what the cut sizes count, the integrator's ``cut_unit`` trait)
     cut_sizes : label -> (H, W) float32 cut size per pixel, in ``report["cut_unit"]``
     images : label -> (H, W, 3) float32 linear RGB
+    reference_pixels, reference_image : (K, 2) int64 (x, y) of the sampled pixels and (K, 3) the
+        all-lights reference there, or None without the reference
     """
 
     config: object
@@ -117,6 +119,8 @@ class Comparison:
     cut_sizes: dict
     images: dict
     mitsuba_images: dict | None = None
+    reference_pixels: np.ndarray | None = None
+    reference_image: np.ndarray | None = None
 
     def title(self) -> str:
         r = self.report["rows"][0]
@@ -134,10 +138,13 @@ class Comparison:
 
     def save(self, folder) -> Path:
         """Write the files ``lightcuts compare`` writes into ``folder`` (replaced as a whole, its
-        ``rows/`` store kept): table.md, table.csv, cutsize-<label>.png, cutsizes.png, report.json,
-        and mitsuba-*.exr / .png with the Mitsuba study. Returns the folder."""
+        ``rows/`` store kept): table.md, table.csv, image-<label>.exr / .png (one tone map, the
+        config's, for every row), cutsize-<label>.png, cutsizes.png, report.json, report.html
+        (:mod:`lightcuts.report.pages`) and mitsuba-*.exr / .png with the Mitsuba study. Returns the folder."""
         from lightcuts.io import check_output_dir, output_set, save_json
-        from lightcuts.report.compare import write_cut_images, write_tables
+        from lightcuts.report import pages
+        from lightcuts.report.compare import file_label, write_cut_images, write_tables
+        from lightcuts.report.html import write_report
         from lightcuts.report.images import write_exr, write_png
 
         out = check_output_dir(folder, "folder", ALLOWED)
@@ -147,10 +154,15 @@ class Comparison:
             write_tables(tmp, rows, self.title(), self._extra())
             report["cut_scale_max"] = write_cut_images(tmp, {r["label"]: self.cut_sizes[r["label"]] for r in rows},
                                                        diff, self.title(), report.get("cut_unit"))
+            for r in rows:
+                write_exr(tmp / f"image-{file_label(r['label'])}.exr", self.images[r["label"]])
+                write_png(tmp / f"image-{file_label(r['label'])}.png", self.images[r["label"]],
+                          self.config.render.tonemap)
             for name, image in (self.mitsuba_images or {}).items():
                 write_exr(tmp / f"mitsuba-{name}.exr", image)
-                write_png(tmp / f"mitsuba-{name}.png", image, self.config.render.exposure)
+                write_png(tmp / f"mitsuba-{name}.png", image, self.config.render.tonemap)
             save_json(tmp / "report.json", report)
+            write_report(tmp / "report.html", pages.compare(self))
         return out
 
     def _extra(self) -> str:
@@ -192,9 +204,10 @@ def compare_run(cfg, plans, labels, pixels, store, *, source: str | None = None,
     """Run the rows (one :class:`~lightcuts.pipeline.plan.Plan` and label each) and the reference on
     ``pixels`` ((K, 2) int64 or None: no error columns); ``store`` a RowStore; ``mitsuba_spp``: add
     the Mitsuba study with a long render of that many spp, and with ``mitsuba_passes`` > 0 the
-    converging render of the study's row (:func:`converging_config`) at its own time; ``source``,
-    ``diff``: recorded in the report. ``runner``: computes the reference and the rows the store lacks
-    on a cluster (``runner.compare_rows(cfg, plans, labels, shared, store, pixels, progress) ->
+    converging render of the study's row (:func:`converging_config`) at its own time; ``source``:
+    recorded in the report; ``diff``: the two rows of the cut-size difference panel (None: chosen
+    by :func:`default_diff` once the rows are done). ``runner``: computes the reference and the
+    rows the store lacks on a cluster (``runner.compare_rows(cfg, plans, labels, shared, store, pixels, progress) ->
     (reference, results)``, :class:`lightcuts.distributed.runner.ClusterRunner`), their values those
     of this function's own; its ``record()`` becomes report.json's ``cluster``."""
     from lightcuts.pipeline.warmup import finish_warmup
@@ -386,26 +399,57 @@ def _row(cfg, plan, label, shared, store, pixels, reference, progress: bool) -> 
     return finish_row(cfg, computed, pixels, reference, store, label, key)
 
 
+def baseline_row(rows: list[dict]) -> dict | None:
+    """The row whose cut sizes the others' are divided by: its builder's ``compare_baseline`` trait
+    (divisive-6d), under its own name (one metric); None without one."""
+    from lightcuts.trees.registry import BUILDERS
+
+    return next((r for r in rows if r["label"] == r["builder"] and r["builder"] in BUILDERS
+                 and BUILDERS.entry(r["builder"]).trait("compare_baseline")), None)
+
+
+def default_diff(labels: list[str], cuts: dict, baseline: str | None) -> tuple[tuple[str, str] | None, str]:
+    """The rows of the cut-size difference panel when none are given, and why: the first row whose
+    cut sizes differ from the ``baseline`` row's, minus the baseline; without a baseline row, the
+    first row and the first later row whose cut sizes differ from it. Rows with the same cut sizes
+    everywhere (agglomerative and agglomerative-heap build the same tree) would give a flat panel:
+    no pair of them is chosen, and None when every row has the same cut sizes.
+    cuts : label -> (H, W) cut sizes."""
+    same = lambda a, b: np.array_equal(cuts[a], cuts[b])  # noqa: E731
+    if baseline is not None:
+        other = next((a for a in labels if a != baseline and not same(a, baseline)), None)
+        if other is not None:
+            return (other, baseline), f"the first row whose cut sizes differ from the baseline {baseline}'s"
+    for i, a in enumerate(labels):
+        other = next((b for b in labels[i + 1:] if not same(a, b)), None)
+        if other is not None:
+            return (a, other), "the first two rows whose cut sizes differ"
+    return None, "every row has the same cut sizes: no difference panel"
+
+
 def _comparison(cfg, source, results: list[dict], reference, pixels, diff, mitsuba) -> Comparison:
-    """The Comparison of finished rows: the rows' ratio to divisive-6d's cut, the report dict."""
+    """The Comparison of finished rows: the rows' ratio to divisive-6d's cut, the rows of the
+    difference panel, the report dict."""
     from lightcuts.report.compare import CSV_FIELDS, cut_unit, machine
 
     rows = [dict(r["row"]) for r in results]
-    from lightcuts.trees.registry import BUILDERS
-
-    base = next((r["cut_mean"] for r in rows if r["label"] == r["builder"] and r["builder"] in BUILDERS
-                 and BUILDERS.entry(r["builder"]).trait("compare_baseline")), None)
+    base = baseline_row(rows)
     for r in rows:
-        r["cut_vs_divisive_6d"] = r["cut_mean"] / base if base else None
+        r["cut_vs_divisive_6d"] = r["cut_mean"] / base["cut_mean"] if base and base["cut_mean"] else None
+    cuts = {r["label"]: x["cut"] for r, x in zip(rows, results)}
+    why = "given"
+    if diff is None:
+        diff, why = default_diff([r["label"] for r in rows], cuts, base["label"] if base else None)
     report = {"config": source, "name": cfg.name, "seed": cfg.seed,
               "settings": cfg.model_dump(mode="json"), "machine": machine(), "cut_unit": cut_unit(rows), "rows": rows,
-              "pixels": None if pixels is None else len(pixels), "diff": list(diff) if diff else None}
+              "pixels": None if pixels is None else len(pixels), "diff": list(diff) if diff else None,
+              "diff_chosen": why}
     if reference is not None:
         report["reference"] = {"seconds": reference["seconds"], "shadow_rays": reference["shadow_rays"]}
     images = None
     if mitsuba is not None:
         images = mitsuba.pop("images")
         report["mitsuba"] = mitsuba
-    return Comparison(cfg, [{k: r.get(k) for k in CSV_FIELDS} for r in rows], report,
-                      {r["label"]: x["cut"] for r, x in zip(rows, results)},
-                      {r["label"]: x["image"] for r, x in zip(rows, results)}, images)
+    return Comparison(cfg, [{k: r.get(k) for k in CSV_FIELDS} for r in rows], report, cuts,
+                      {r["label"]: x["image"] for r, x in zip(rows, results)}, images,
+                      None if reference is None else pixels, None if reference is None else reference["image"])

@@ -2,7 +2,8 @@
 
 Both measure lightcuts' images against one long path-traced render of the same config (its
 ``--spp``, seed ``seed + 1``) with :func:`lightcuts.report.images.compare_images` (energy ratio,
-per-pixel and 8x8-block relative luminance error). The path tracer (:class:`PathTracer`) is
+per-pixel and 8x8-block relative luminance error), the pixels that see an emitter directly left
+out (:func:`lightcuts.render.primary.emitter_mask`). The path tracer (:class:`PathTracer`) is
 Mitsuba 3's or lightcuts' own with the exact BRDF (``--renderer``).
 
 * :func:`error_curve`: lightcuts' running mean after passes 1, 2, 4, ... N of the config
@@ -28,11 +29,12 @@ MEASURES = (("energy_ratio", ("energy_ratio",)), ("pixel_median", ("pixel", "med
             ("block8_median", ("block8", "median")))
 
 
-def measures(image: np.ndarray, reference: np.ndarray) -> dict:
-    """{"energy_ratio", "pixel_median", "block8_median"} of the image against the reference."""
+def measures(image: np.ndarray, reference: np.ndarray, mask: np.ndarray | None = None) -> dict:
+    """{"energy_ratio", "pixel_median", "block8_median"} of the image against the reference, the
+    pixels of ``mask`` (those that see an emitter directly) left out."""
     from lightcuts.report.images import compare_images
 
-    c = compare_images(image, reference)
+    c = compare_images(image, reference, mask=mask)
     out = {}
     for key, path in MEASURES:
         v = c
@@ -144,15 +146,17 @@ def error_curve(cfg, plan, scene, envmap, caster, reference: np.ndarray, progres
     :attr:`PathTracer.label` as "method". Its points are its render times (the render call
     alone), lightcuts' the summed pass times. ``tracer``: the path tracer (default Mitsuba's)."""
     from lightcuts.pipeline.passes import render_passes
+    from lightcuts.render.primary import emitter_mask
 
     tracer = tracer or PathTracer()
     points = set(pass_counts(cfg.render.passes))
+    mask = emitter_mask(scene, caster, cfg.render.crop, envmap is not None)
     rows = []
 
     def on_pass(p, mean, seconds):
         if p + 1 in points:
             rows.append({"method": "lightcuts", "passes": p + 1, "spp": cfg.render.spp * (p + 1),
-                         "seconds": seconds, **measures(mean, reference)})
+                         "seconds": seconds, **measures(mean, reference, mask)})
             log(f"{cfg.name}: lightcuts {p + 1} passes, {seconds:.2f} s: block8 median "
                 f"{100 * (rows[-1]['block8_median'] or 0):.2f}%")
 
@@ -163,7 +167,7 @@ def error_curve(cfg, plan, scene, envmap, caster, reference: np.ndarray, progres
         spp = max(1, int(round(r["seconds"] / per_spp)))
         image, seconds = tracer.render(cfg, scene, envmap, spp, cfg.seed)
         rows.append({"method": tracer.label, "passes": None, "spp": spp, "seconds": seconds,
-                     **measures(image, reference)})
+                     **measures(image, reference, mask)})
         log(f"{cfg.name}: {tracer.label} {spp} spp, {seconds:.2f} s: block8 median "
             f"{100 * (rows[-1]['block8_median'] or 0):.2f}%")
     lc = [r for r in rows if r["method"] == "lightcuts"]
@@ -210,6 +214,7 @@ def energy_split(make_run, passes: int, spp: int, progress: bool = True, log=pri
     "block8_median"}, ...], "references": {key: {"seconds"}}, "images": {key: image}}, one key per
     long render: "path", "path-diffuse" (materials made diffuse) or "direct"."""
     from lightcuts.pipeline.passes import render_passes
+    from lightcuts.render.primary import emitter_mask
 
     tracer = tracer or PathTracer()
     runs = []  # every row's run is loaded and planned before any work: a refused one stops here
@@ -231,7 +236,8 @@ def energy_split(make_run, passes: int, spp: int, progress: bool = True, log=pri
             refs[key] = {"seconds": seconds}
         with plan.make_caster(scene) as caster:
             result = render_passes(cfg, plan, scene, caster, envmap, desc=f"{cfg.name}: {label}", progress=progress)
+            mask = emitter_mask(scene, caster, cfg.render.crop, envmap is not None)
         rows.append({"label": label, "overrides": overrides, "diffuse": diffuse, "integrator": integrator,
-                     "seconds": result.seconds, **measures(result.image, images[key])})
+                     "seconds": result.seconds, **measures(result.image, images[key], mask)})
         log(f"{cfg.name}: {label}: energy lightcuts/{tracer.label} {rows[-1]['energy_ratio']:.4f}")
     return {"rows": rows, "references": refs, "images": images}

@@ -31,10 +31,10 @@ class Render:
     reference: np.ndarray | None = None
 
     def srgb8(self) -> np.ndarray:
-        """(H, W, 3) uint8: the image as image.png has it (sRGB, ``render.exposure`` stops)."""
-        from lightcuts.report.images import to_srgb8
+        """(H, W, 3) uint8: the image as image.png has it (sRGB through ``render.tonemap``)."""
+        from lightcuts.report.tonemap import of, srgb8
 
-        return to_srgb8(self.image, self.config.render.exposure)
+        return srgb8(self.image, *of(self.config.render.tonemap))
 
     def _repr_png_(self) -> bytes:
         """The tone-mapped image as PNG bytes (shown by Jupyter/IPython)."""
@@ -48,23 +48,27 @@ class Render:
 
     def save(self, folder) -> Path:
         """Write the files ``lightcuts render`` writes into ``folder`` (replaced as a whole, see
-        :func:`lightcuts.io.output_set`): image.exr, image.png, cutsize.png, report.json, and
-        reference.exr / reference.png if there is a reference. Returns the folder."""
+        :func:`lightcuts.io.output_set`): image.exr, image.png, cutsize.png, report.json, report.html
+        (:mod:`lightcuts.report.pages`), and reference.exr / reference.png if there is a reference.
+        Returns the folder."""
         from lightcuts.io import SUBRUN_FOLDERS, check_output_dir, output_set, save_json
+        from lightcuts.report import pages
+        from lightcuts.report.html import write_report
         from lightcuts.report.images import write_exr, write_heatmap, write_png
 
         cfg, report = self.config, self.report
         out = check_output_dir(folder, "folder")
         with output_set(out, keep=SUBRUN_FOLDERS) as tmp:
             write_exr(tmp / "image.exr", self.image)
-            write_png(tmp / "image.png", self.image, cfg.render.exposure)
+            write_png(tmp / "image.png", self.image, cfg.render.tonemap)
             write_heatmap(tmp / "cutsize.png", self.cut_size, label=f"cut size ({report['cut_size_unit']})",
                           title=f"{cfg.name}: {report['builder']}, eps {cfg.render.eps:g}, "
                                 f"mean cut {report['cut_size_mean']:.0f}")
             if self.reference is not None:
                 write_exr(tmp / "reference.exr", self.reference)
-                write_png(tmp / "reference.png", self.reference, cfg.render.exposure)
+                write_png(tmp / "reference.png", self.reference, cfg.render.tonemap)
             save_json(tmp / "report.json", report)
+            write_report(tmp / "report.html", pages.render(self))
         return out
 
     def summary(self) -> str:

@@ -1,6 +1,7 @@
-"""Image outputs: linear EXR, sRGB PNG (colour-science), cut-size heatmap with a colour bar.
+"""Image outputs: linear EXR, tone-mapped sRGB PNG (:mod:`lightcuts.report.tonemap`), cut-size
+heatmap with a colour bar, and the error statistics of an image against a reference.
 
-All writers are atomic (temporary name, then rename). Heavy imports (OpenEXR, colour, matplotlib)
+All writers are atomic (temporary name, then rename). Heavy imports (OpenEXR, matplotlib)
 happen inside the functions so that importing lightcuts stays fast.
 """
 
@@ -50,27 +51,16 @@ def read_exr(path) -> np.ndarray:
         raise LightcutsError(f"{path}: cannot read EXR ({exc})") from None
 
 
-def to_srgb8(rgb: np.ndarray, exposure: float = 0.0) -> np.ndarray:
-    """Linear RGB -> 8-bit sRGB (H, W, 3) uint8: scale by 2^exposure, sRGB OETF (colour-science), clip."""
-    import warnings
-
-    os.environ.setdefault("COLOUR_SCIENCE__FILTER_USAGE_WARNINGS", "1")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        import colour
-
-    x = np.clip(np.asarray(rgb, np.float64) * (2.0 ** exposure), 0.0, 1.0)
-    encoded = colour.cctf_encoding(x, function="sRGB")
-    return np.clip(np.round(encoded * 255.0), 0, 255).astype(np.uint8)
-
-
-def write_png(path, rgb: np.ndarray, exposure: float = 0.0) -> Path:
-    """Write linear RGB (H, W, 3) as an 8-bit sRGB PNG, after ``exposure`` stops."""
+def write_png(path, rgb: np.ndarray, tonemap=None) -> Path:
+    """Write linear RGB (H, W, 3) as an 8-bit sRGB PNG through ``tonemap`` (a config's
+    ``render.tonemap``: ``type`` and ``exposure``; None: clipped at 0 stops)."""
     from PIL import Image
+
+    from lightcuts.report.tonemap import of, srgb8
 
     path = Path(path)
     with atomic_path(path, suffix=".png") as tmp:
-        Image.fromarray(to_srgb8(rgb, exposure)).save(tmp, format="PNG")
+        Image.fromarray(srgb8(rgb, *of(tonemap))).save(tmp, format="PNG")
     return path
 
 
@@ -100,23 +90,26 @@ def write_heatmap(path, values: np.ndarray, label: str = "cut size (nodes per ey
     return path
 
 
-def relative_error(image: np.ndarray, reference: np.ndarray, floor: float | None = None) -> dict:
-    """Per-pixel relative error of luminance, |L - L_ref| / L_ref, over pixels with L_ref > floor.
+def relative_error(image: np.ndarray, reference: np.ndarray, floor: float | None = None,
+                   mask: np.ndarray | None = None) -> dict:
+    """Per-pixel relative error of luminance, |L - L_ref| / L_ref, over pixels with L_ref > floor
+    and not in ``mask`` (bool, the images' shape without the channel axis; True: left out).
 
-    floor defaults to 1% of the reference's mean luminance (dark pixels make relative error meaningless).
-    Returns mean, median, p99, max and the number of pixels compared.
+    floor defaults to 1% of the reference's mean luminance over the pixels not masked (dark pixels make
+    relative error meaningless). Returns mean, median, p99, max and the number of pixels compared.
     """
     from lightcuts.lights.lightset import LUMINANCE
 
     lum = np.asarray(image, np.float64) @ LUMINANCE
     ref = np.asarray(reference, np.float64) @ LUMINANCE
+    keep = np.ones(ref.shape, bool) if mask is None else ~np.asarray(mask, bool)
     if floor is None:
-        floor = 0.01 * float(ref.mean())
-    mask = ref > floor
-    if not mask.any():
+        floor = 0.01 * float(ref[keep].mean()) if keep.any() else 0.0
+    keep = keep & (ref > floor)
+    if not keep.any():
         return {"pixels": 0, "floor": floor, "mean": 0.0, "median": 0.0, "p99": 0.0, "max": 0.0}
-    rel = np.abs(lum[mask] - ref[mask]) / ref[mask]
-    return {"pixels": int(mask.sum()), "floor": float(floor), "mean": float(rel.mean()),
+    rel = np.abs(lum[keep] - ref[keep]) / ref[keep]
+    return {"pixels": int(keep.sum()), "floor": float(floor), "mean": float(rel.mean()),
             "median": float(np.median(rel)), "p99": float(np.percentile(rel, 99)), "max": float(rel.max())}
 
 
@@ -129,19 +122,59 @@ def block_means(image: np.ndarray, block: int = 8) -> np.ndarray:
     return a.reshape(h // block, block, w // block, block, *a.shape[2:]).mean(axis=(1, 3))
 
 
-def compare_images(image: np.ndarray, reference: np.ndarray, block: int = 8) -> dict:
-    """An image against a reference of the same shape (H, W, 3): ``energy_ratio`` (mean luminance
-    image / reference; None for a black
-    reference), ``pixel`` (:func:`relative_error` per pixel) and ``block<k>`` (the same on the
-    means of k x k tiles, taken first: a path-traced reference's noise mostly averages out there)."""
+def compare_images(image: np.ndarray, reference: np.ndarray, block: int = 8, mask: np.ndarray | None = None,
+                   halves: tuple[np.ndarray, np.ndarray] | None = None) -> dict:
+    """An image against a reference of the same shape (H, W, 3).
+
+    mask : (H, W) bool, pixels left out of every figure: those that see an emitter directly
+        (:func:`lightcuts.render.primary.emitter_mask`), whose radiance every renderer shares and which
+        can hold most of the frame's energy; None leaves none out
+    halves : (A, B), two independent renders of the reference with half its samples each
+        (reference = (A + B) / 2); None when there are none
+
+    Returns ``energy_ratio`` (mean luminance image / reference over the pixels not masked; None for a
+    black reference), ``energy_ratio_frame`` (the same over every pixel), ``masked_pixels``, ``pixel``
+    (:func:`relative_error` per pixel), ``block<k>`` (the same on the means of k x k tiles, taken
+    first, tiles holding a masked pixel left out: a path-traced reference's noise mostly averages
+    out there) and, with ``halves``, ``reference_noise``: the same figures for the reference's own
+    noise, estimated per pixel by (A - B) / 2 (whose spread is the reference's): ``energy_ratio``,
+    the relative standard deviation of the reference's mean luminance over the pixels not masked
+    (from the per-pixel variances ((A - B) / 2)^2), and ``pixel`` / ``block<k>``, the errors an exact
+    image would show against this reference, over the same pixels and floor. An error near its
+    noise figure is mostly the reference's noise, not the image's error.
+    """
     from lightcuts.lights.lightset import LUMINANCE
 
     image, reference = np.asarray(image, np.float64), np.asarray(reference, np.float64)
     if image.shape != reference.shape:
         raise ValueError(f"images differ in shape: {image.shape} and {reference.shape}")
-    ref_mean = float((reference @ LUMINANCE).mean())
-    out = {"energy_ratio": float((image @ LUMINANCE).mean()) / ref_mean if ref_mean > 0 else None,
-           "pixel": relative_error(image, reference)}
-    if image.shape[0] >= block and image.shape[1] >= block:
-        out[f"block{block}"] = relative_error(block_means(image, block), block_means(reference, block))
+    keep = np.ones(reference.shape[:2], bool) if mask is None else ~np.asarray(mask, bool)
+    if keep.shape != reference.shape[:2]:
+        raise ValueError(f"mask has shape {keep.shape}; expected {reference.shape[:2]}")
+    lum, ref = image @ LUMINANCE, reference @ LUMINANCE
+
+    def ratio(sel):
+        m = float(ref[sel].mean()) if sel.any() else 0.0
+        return float(lum[sel].mean()) / m if m > 0 else None
+
+    out = {"energy_ratio": ratio(keep), "energy_ratio_frame": ratio(np.ones_like(keep)),
+           "masked_pixels": int((~keep).sum()), "pixel": relative_error(image, reference, mask=~keep)}
+    tiles = image.shape[0] >= block and image.shape[1] >= block
+    if tiles:
+        tile_mask = block_means(~keep, block) > 0
+        out[f"block{block}"] = relative_error(block_means(image, block), block_means(reference, block),
+                                              mask=tile_mask)
+    if halves is not None:
+        noise = (np.asarray(halves[0], np.float64) - np.asarray(halves[1], np.float64)) / 2.0
+        if noise.shape != reference.shape:
+            raise ValueError(f"halves have shape {noise.shape}; expected {reference.shape}")
+        n, m = int(keep.sum()), float(ref[keep].mean()) if keep.any() else 0.0
+        spread = float(np.sqrt(np.sum((noise @ LUMINANCE)[keep] ** 2))) / n if n else 0.0
+        out["reference_noise"] = {
+            "energy_ratio": spread / m if m > 0 else None,
+            "pixel": relative_error(reference + noise, reference, out["pixel"]["floor"], ~keep)}
+        if tiles:
+            out["reference_noise"][f"block{block}"] = relative_error(
+                block_means(reference + noise, block), block_means(reference, block), out[f"block{block}"]["floor"],
+                tile_mask)
     return out

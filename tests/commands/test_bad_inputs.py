@@ -169,7 +169,11 @@ CASES = [
      _config(camera__resolution=..., render__crop=[0, 0, 513, 10]), None),
     ("eps-5", ["render", "bad.yaml"], _config(render__eps=5), None),
     ("eps-0", ["render", "bad.yaml"], _config(render__eps=0), None),
-    ("exposure-1024", ["render", "bad.yaml"], _config(render__exposure=1024), None),
+    ("exposure-1024", ["render", "bad.yaml"], _config(render__tonemap={"type": "aces", "exposure": 1024}), None),
+    ("exposure-moved", ["render", "bad.yaml"], _config(render__exposure=1), None),
+    ("tonemap-unknown", ["render", "bad.yaml"], _config(render__tonemap="filmic"), None),
+    ("tonemap-not-section", ["render", "run.yaml", "--set", "render.tonemap=aces", "--set",
+                             "render.tonemap.exposure=1"], None, None),
     ("sun-zero", ["render", "bad.yaml"], _config(lights__sun={"direction": [0, 1, 0], "irradiance": [0, 0, 0]}),
      None),
     # names and output places
@@ -184,6 +188,11 @@ CASES = [
     ("lights-out-under-file", ["lights", "run.yaml", "--out", "a_file/l.npz"], None, None),
     ("tree-out-is-folder", ["tree", "run.yaml", "--out", "mine"], None, None),
     ("scaling-out-under-file", ["scaling", "run.yaml", "--sizes", "100", "--out", "a_file/s"], None, None),
+    ("convert-missing-exr", ["convert", "none.exr"], None, None),
+    ("convert-not-exr", ["convert", "run.yaml", "--out", "x.png"], None, None),
+    ("convert-out-not-png", ["convert", "run.yaml", "--out", "x.jpg"], None, None),
+    ("convert-out-is-folder", ["convert", "run.yaml", "--out", "mine"], None, None),
+    ("convert-exposure-huge", ["convert", "run.yaml", "--exposure", "1e4"], None, None),
     # builders and parameters
     ("tree-c-1e308", ["tree", "run.yaml", "--c", "1e308", "--out", "t.npz"], None, None),
     ("config-c-1e308", ["render", "bad.yaml"], _config(tree={"c": 1e308}), None),
@@ -455,7 +464,7 @@ def test_output_set_replaces_old_folder_whole(workdir, capsys):
     finally:
         os.umask(old_umask)
     names = sorted(p.name for p in (folder / "old").iterdir())
-    assert names == ["cutsize.png", "image.exr", "image.png", "report.json"]
+    assert names == ["cutsize.png", "image.exr", "image.png", "report.html", "report.json"]
     assert all((folder / "old" / n).stat().st_mode & 0o777 == 0o644 for n in names)
     assert (folder / "old" / "image.png").read_bytes() != OLD_SET["image.png"]
     assert [p.name for p in folder.iterdir() if p.name.startswith(".")] == []
@@ -506,7 +515,7 @@ def test_signal_during_render(tmp_path, sig, code, word):
 _KEYS = ["name", "seed", "scene", "builtin", "meshes", "file", "materials", "floor", "albedo", "emission",
          "camera", "resolution", "fov", "position", "lights", "direct", "indirect", "count", "sun", "direction",
          "irradiance", "environment", "procedural", "tree", "builder", "metric", "c", "render", "eps", "spp",
-         "crop", "exposure", "clamp", "enabled", "max_cut", "ray_caster", "scale", "rotate", "translate",
+         "crop", "tonemap", "exposure", "clamp", "enabled", "max_cut", "ray_caster", "scale", "rotate", "translate",
          "type", "triangles", "rooms"]
 _SCALARS = (st.none() | st.booleans() | st.integers(-2**70, 2**70) | st.floats(allow_nan=True)
             | st.text(max_size=8)

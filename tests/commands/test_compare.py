@@ -23,8 +23,68 @@ BUILDERS = "agglomerative,divisive-6d,divisive-3d"
 def compared(tmp_path_factory):
     out = tmp_path_factory.mktemp("compare") / "cmp"
     assert main(["compare", str(ROOT / "configs/cornell.yaml"), "--builders", BUILDERS, "--pixels", "200",
-                 "--out", str(out), "--no-progress", *SMALL]) == 0
+                 "--out", str(out), "--no-progress", "--set", "render.tonemap={type: aces, exposure: 1.5}",
+                 *SMALL]) == 0
     return out, json.loads((out / "report.json").read_text())
+
+
+def test_each_row_image_as_exr_and_png_with_one_tone_map(compared):
+    from lightcuts.report.images import read_exr
+    from lightcuts.report.tonemap import srgb8
+
+    out, report = compared
+    images = {}
+    for label in BUILDERS.split(","):
+        images[label] = read_exr(out / f"image-{label}.exr")
+        np.testing.assert_array_equal(images[label], np.load(out / "rows" / f"{label}.npz")["image"])
+        png = np.asarray(Image.open(out / f"image-{label}.png"))
+        np.testing.assert_array_equal(png, srgb8(images[label], "aces", 1.5))
+    assert not np.array_equal(images["agglomerative"], images["divisive-3d"])  # each row its own image
+
+
+def test_report_html_holds_each_rows_image_and_cut_sizes_and_the_sampled_reference(compared):
+    from lightcuts.report.html import viewer_values
+
+    out, report = compared
+    text = (out / "report.html").read_text()
+    data = json.loads(text.split('id="lc-data">', 1)[1].split("</script>", 1)[0])
+    labels = BUILDERS.split(",")
+    assert [layer["name"] for layer in data["layers"]] == (labels + [f"cut: {b}" for b in labels]
+                                                           + ["cut: agglomerative - divisive-6d"])
+    diff = data["scales"]["diff"]
+    assert diff["map"] == "RdBu_r" and diff["min"] == -diff["max"] and diff["max"] >= 1
+    assert data["tonemap"] == {"type": "aces", "exposure": 1.5}
+    assert data["scales"]["cut"]["max"] == report["cut_scale_max"]
+    assert data["sample"]["xy"]["shape"] == [200, 2] and data["reference"] is None
+    assert len(data["layers"][0]["values"]["b64"]) < 40 * 40 * 6 * 4 / 3 + 4  # float16, deflated
+    stored = np.load(out / "rows" / "agglomerative.npz")["image"]
+    assert viewer_values(stored).shape == (40, 40, 3)
+
+
+def test_default_difference_panel_is_of_two_rows_that_differ(compared, tmp_path, capsys):
+    out, report = compared
+    # divisive-6d is the baseline; agglomerative, the first row, differs from it
+    assert report["diff"] == ["agglomerative", "divisive-6d"]
+    assert "baseline divisive-6d" in report["diff_chosen"]
+    # agglomerative and agglomerative-heap build the same tree: never a panel of the two
+    same = tmp_path / "same"
+    assert main(["compare", str(ROOT / "configs/cornell.yaml"), "--builders", "agglomerative-heap,agglomerative",
+                 "--pixels", "0", "--out", str(same), "--no-progress", *SMALL]) == 0
+    r = json.loads((same / "report.json").read_text())
+    assert r["diff"] is None and "same cut sizes" in r["diff_chosen"]
+    assert "difference panel: none (every row has the same cut sizes" in capsys.readouterr().out
+
+
+def test_default_diff_rules():
+    from lightcuts.pipeline.comparing import default_diff
+
+    a, b = np.zeros((2, 3)), np.ones((2, 3))
+    cuts = {"heap": a, "local": a.copy(), "d6": b, "d3": b + 1}
+    assert default_diff(["heap", "local", "d6", "d3"], cuts, "d6")[0] == ("heap", "d6")
+    assert default_diff(["heap", "local", "d6", "d3"], cuts, None)[0] == ("heap", "d6")
+    assert default_diff(["heap", "local", "d6", "d3"], {**cuts, "d6": a}, "d6")[0] == ("d3", "d6")
+    assert default_diff(["heap", "local", "d6"], {**cuts, "d6": a}, "d6")[0] is None
+    assert default_diff(["heap", "local"], cuts, None)[0] is None
 
 
 def test_rows_equal_the_individual_renders(compared, tmp_path):

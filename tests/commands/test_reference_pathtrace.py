@@ -34,18 +34,59 @@ def test_converging_run_against_the_exact_path_tracer(tmp_path):
     assert r["lightcuts"]["passes"] == 4 and r["lightcuts"]["compensation"] is True
     assert abs(r["comparison"]["energy_ratio"] - 1) < 0.03, r["comparison"]
     assert sorted(p.name for p in out.iterdir()) == ["lightcuts.exr", "lightcuts.png", "path.exr", "path.png",
-                                                      "report.json"]
+                                                      "report.html", "report.json"]
+
+
+def test_figures_leave_out_the_emitter_and_stand_beside_the_path_tracers_noise(tmp_path, capsys):
+    """The whole Cornell box, its light in view: the light's pixels are left out of the figures,
+    the path tracer's image is the mean of two independent halves, and each figure has the noise
+    those halves measure beside it."""
+    import numpy as np
+
+    from lightcuts.accel import make_caster
+    from lightcuts.pipeline.plan import plan_run
+    from lightcuts.config import load_config
+    from lightcuts.render.path import path_trace
+    from lightcuts.render.primary import emitter_mask
+    from lightcuts.report.images import read_exr
+
+    out, size = tmp_path / "ref", ["--set", "camera.resolution=[24,24]"]
+    assert _cli(["reference", ROOT / "configs/cornell.yaml", "--renderer", "lightcuts", "--spp", 7, "--out", out,
+                 "--no-progress", *SMALL, *size]) == 0
+    r = json.loads((out / "report.json").read_text())
+    c, pt = r["comparison"], r["path_tracer"]
+    assert pt["spp"] == 8 and pt["half_seeds"] == [1, 0]  # 7 rounded up to two halves of 4; seeds 1 and 1 ^ 1
+    cfg = load_config(ROOT / "configs/cornell.yaml", SMALL[1::2] + size[1::2])
+    scene = plan_run(cfg).scene()
+    with make_caster(scene) as caster:
+        mask = emitter_mask(scene, caster)
+        halves = [path_trace(scene, caster, spp=4, seed=s)[0] for s in (1, 0)]
+    np.testing.assert_array_equal(read_exr(out / "path.exr"), (halves[0] + halves[1]) / 2)
+    assert c["masked_pixels"] == mask.sum() > 0 and c["pixel"]["pixels"] <= 24 * 24 - mask.sum()
+    assert c["energy_ratio"] != c["energy_ratio_frame"]
+    noise = c["reference_noise"]
+    assert noise["pixel"]["pixels"] == c["pixel"]["pixels"] and noise["energy_ratio"] > 0
+    assert 0 < noise["pixel"]["median"] and 0 < noise["block8"]["median"]
+    assert "emitter" in r["emitter_mask"]
+    text = (out / "report.html").read_text()
+    data = json.loads(text.split('id="lc-data">', 1)[1].split("</script>", 1)[0])
+    assert [layer["name"] for layer in data["layers"]] == ["lightcuts", "path"] and data["reference"] == 1
+    assert data["mask"]["shape"] == [24, 24] and "noise" in text
+    printed = capsys.readouterr().out
+    assert f"{mask.sum()} pixels seeing an emitter directly left out" in printed
+    assert f"median {100 * c['pixel']['median']:.2f}% (noise {100 * noise['pixel']['median']:.2f}%)" in printed
 
 
 def test_the_path_integrator_renders_the_reference_commands_path_image(tmp_path):
     """``lightcuts render`` with ``render.integrator: path`` and ``lightcuts reference --renderer
     lightcuts`` at the same seed and samples per pixel give the same image file, byte for byte:
-    one path tracer, whichever command runs it."""
+    one path tracer, whichever command runs it (one sample per pixel: above it the reference is the
+    mean of two independent halves)."""
     common = ["--no-progress", "--set", "seed=7", "--set", "camera.resolution=[24,20]",
               "--set", "render.crop=[2,3,22,17]", *SMALL]
-    assert _cli(["reference", ROOT / "configs/cornell.yaml", "--renderer", "lightcuts", "--spp", 8,
+    assert _cli(["reference", ROOT / "configs/cornell.yaml", "--renderer", "lightcuts", "--spp", 1,
                  "--out", tmp_path / "ref", *common]) == 0
-    assert _cli(["render", ROOT / "configs/cornell.yaml", "--set", "render.integrator=path", "--set", "render.spp=8",
+    assert _cli(["render", ROOT / "configs/cornell.yaml", "--set", "render.integrator=path", "--set", "render.spp=1",
                  "--out", tmp_path / "render", *common]) == 0
     assert (tmp_path / "render" / "image.exr").read_bytes() == (tmp_path / "ref" / "path.exr").read_bytes()
     r = json.loads((tmp_path / "render" / "report.json").read_text())

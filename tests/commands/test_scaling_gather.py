@@ -29,7 +29,7 @@ def test_a_row_per_gather_count_and_integrator(gathered):
     out, rows = gathered
     assert [(r["gather"], r["integrator"]) for r in rows] == [
         ("1", "lightcuts"), ("1", "multidimensional"), ("4", "lightcuts"), ("4", "multidimensional")]
-    assert sorted(p.name for p in out.iterdir()) == ["gather_scaling.csv", "gather_scaling.png"]
+    assert sorted(p.name for p in out.iterdir()) == ["gather_scaling.csv", "gather_scaling.png", "report.html"]
     assert (out / "gather_scaling.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     for r in rows:
         assert float(r["image_s"]) > 0 and float(r["shadow_rays_per_pixel"]) > 0

@@ -129,12 +129,14 @@ def test_cornell_direct_light_matches_mitsuba(mi, tmp_path, capsys):
                  "--set", "render.spp=16"]) == 0
     r = _report(out)
     assert r["lightcuts"]["lights_indirect"] == 0 and r["lightcuts"]["lights"] == {"oriented": 1024}
-    assert r["mitsuba"]["variant"] == "scalar_rgb" and r["mitsuba"]["spp"] == 256
+    # two independent halves of at least 128 spp each (132: the next count Mitsuba's multi-jittered sampler factors)
+    assert r["mitsuba"]["variant"] == "scalar_rgb" and r["mitsuba"]["spp"] == 264
+    assert r["mitsuba"]["half_seeds"] == [1, 0] and "reference_noise" in r["comparison"]
     c = r["comparison"]
     assert abs(c["energy_ratio"] - 1) < 0.01, c
     assert c["block8"]["median"] < 0.02, c
     assert sorted(p.name for p in out.iterdir()) == ["lightcuts.exr", "lightcuts.png", "mitsuba.exr",
-                                                      "mitsuba.png", "report.json"]
+                                                      "mitsuba.png", "report.html", "report.json"]
     assert "energy lightcuts/Mitsuba" in capsys.readouterr().out
 
 
@@ -250,7 +252,7 @@ def test_reference_curve_measures_both_renderers_at_the_same_times(mi, tmp_path,
     csv = (out / "curve.csv").read_text().splitlines()
     assert csv[0].startswith("method,passes,spp,seconds") and len(csv) == 7
     assert sorted(p.name for p in out.iterdir()) == ["curve.csv", "curve.png", "lightcuts.exr", "lightcuts.png",
-                                                      "mitsuba.exr", "mitsuba.png", "report.json"]
+                                                      "mitsuba.exr", "mitsuba.png", "report.html", "report.json"]
     assert "slope" in capsys.readouterr().out
 
 
