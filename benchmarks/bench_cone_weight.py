@@ -42,7 +42,7 @@ from lightcuts.io import save_csv  # noqa: E402
 from lightcuts.lights.direct import direct_lights  # noqa: E402
 from lightcuts.lights.indirect import indirect_lights  # noqa: E402
 from lightcuts.lights.lightset import LUMINANCE, LightSet  # noqa: E402
-from lightcuts.render.lightcut import render_image, render_reference  # noqa: E402
+from lightcuts.integrators.lightcut import render_image, render_reference  # noqa: E402
 from lightcuts.scene.cornell import cornell_box  # noqa: E402
 from lightcuts.scene.scene import Camera  # noqa: E402
 from lightcuts.trees import build_tree, default_c, tree_spec  # noqa: E402

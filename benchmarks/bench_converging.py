@@ -2,7 +2,7 @@
 
 Per config, at a reduced size (``--size`` pixels wide), against one long path-traced render
 (``--spp``, seed + 1) by ``--renderer``: Mitsuba 3 (default) or lightcuts' own path tracer with the
-exact BRDF (lightcuts.render.path):
+exact BRDF (lightcuts.integrators.path):
 
 * ``before``: the config as it is (one pass, no compensation, fixed representatives);
 * ``after``: compensation, ``--representatives``, ``--passes`` passes;

@@ -103,7 +103,7 @@ def tile_seconds(cfg, plan, scene, envmap, lights, trees, windows, spp: int = 1)
     forest made once, then the crop window)."""
     from lightcuts.distributed.worker import Run
     from lightcuts.parallel import num_threads
-    from lightcuts.render.registry import make_integrator
+    from lightcuts.integrators.registry import make_integrator
 
     c = cfg.model_copy(update={"render": cfg.render.model_copy(update={"spp": spp})})
     integ = make_integrator(c, plan.integrator)

@@ -19,8 +19,8 @@ def main() -> None:
     from lightcuts.pipeline.plan import plan_run
     from lightcuts.config.schema import load_config
     from lightcuts.lights.lightset import LUMINANCE
-    from lightcuts.render.lightcut import render_image
-    from lightcuts.render.multidim import render_multidimensional, render_multidimensional_reference
+    from lightcuts.integrators.lightcut import render_image
+    from lightcuts.integrators.multidim import render_multidimensional, render_multidimensional_reference
     from lightcuts.scene.scene import Camera
 
     p = argparse.ArgumentParser()

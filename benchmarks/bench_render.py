@@ -46,7 +46,7 @@ from common import load_average, timed  # noqa: E402
 from lightcuts.lights.direct import direct_lights  # noqa: E402
 from lightcuts.lights.indirect import indirect_lights  # noqa: E402
 from lightcuts.lights.lightset import LUMINANCE, LightSet  # noqa: E402
-from lightcuts.render.lightcut import render_image, render_reference  # noqa: E402
+from lightcuts.integrators.lightcut import render_image, render_reference  # noqa: E402
 from lightcuts.scene.cornell import cornell_box  # noqa: E402
 from lightcuts.scene.scene import Camera  # noqa: E402
 from lightcuts.trees import BUILDERS, build_tree  # noqa: E402

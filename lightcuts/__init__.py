@@ -1,16 +1,17 @@
 """lightcuts: Lightcuts rendering of many-light scenes with pluggable light-tree builders.
 
 From Python: :func:`load_config`, :func:`render` and :func:`compare` (:mod:`lightcuts.api`), loaded
-on first use so that ``import lightcuts`` stays cheap. ``lightcuts.render`` is also the render
-stage's package: called, it is :func:`lightcuts.api.render`.
+on first use so that ``import lightcuts`` stays cheap.
 
 One sub-package per stage, each importing only the stages before it: ``cluster`` (the agglomerative
 clustering engine: kd-tree, Fig. 3/4, dissimilarities, shared by the BVH and the light trees) ->
 ``scene`` -> ``accel`` (ray casting over the scene's triangles, which the particle tracer already
-needs) -> ``lights`` -> ``trees`` -> ``render`` -> ``report`` -> ``mitsuba`` (the optional Mitsuba 3
-reference renderer, imported only when used). Above them, ``api`` (the Python API), ``distributed``
-(runs on a Dask cluster, beside the API, imported only with ``--workers`` / ``--scheduler``) and
-``commands`` (one module per CLI command, each resolving its plan before any work) and ``cli``; below them,
+needs) -> ``lights`` -> ``trees`` -> ``integrators`` (how each pixel is computed: lightcuts,
+multidimensional lightcuts, the path tracer, and their parts) -> ``report`` -> ``mitsuba`` (the
+optional Mitsuba 3 reference renderer, imported only when used). Above them, in order: ``pipeline``
+(the plan and the stages of a run), ``distributed`` (runs on a Dask cluster, imported only with
+``--workers`` / ``--scheduler`` or ``cluster=``), ``api`` (the Python API), ``commands`` (one module
+per CLI command: arguments and printing) and ``cli``; below them,
 ``config`` (the run schema and its defaults), ``registry`` (plugins), ``plugin_docs`` (the plugin
 reference generated from the registries) and small helpers. Data travel
 between stages as flat numpy arrays in small classes (:class:`~lightcuts.scene.Scene`,
@@ -19,8 +20,6 @@ docs/architecture.md draws the whole.
 """
 
 import os
-import sys
-import types
 
 __version__ = "0.1.0"
 
@@ -34,7 +33,7 @@ os.environ.setdefault("NUMBA_SLP_VECTORIZE", "1")
 from lightcuts.errors import LightcutsError  # noqa: E402,F401
 
 #: The names of the Python API (lightcuts.api), imported on first use.
-_API = ("load_config", "compare", "Render", "Comparison")
+_API = ("load_config", "render", "compare", "Render", "Comparison")
 
 
 def __getattr__(name: str):
@@ -42,35 +41,8 @@ def __getattr__(name: str):
         from lightcuts import api
 
         return getattr(api, name)
-    if name == "render":  # the stage's package, callable (see _Package)
-        import importlib
-
-        return importlib.import_module("lightcuts.render")
     raise AttributeError(f"module 'lightcuts' has no attribute {name!r}")
 
 
 def __dir__():
-    return sorted(set(globals()) | set(_API) | {"render"})
-
-
-class _RenderPackage(types.ModuleType):
-    """The ``lightcuts.render`` package, callable: ``lightcuts.render(config, ...)`` is
-    :func:`lightcuts.api.render`."""
-
-    def __call__(self, config, **kwargs):
-        from lightcuts.api import render
-
-        return render(config, **kwargs)
-
-
-class _Package(types.ModuleType):
-    """The ``lightcuts`` package: when the import system binds the ``render`` sub-package to it, the
-    sub-package becomes callable (the package name and the API function share one name)."""
-
-    def __setattr__(self, name, value):
-        if name == "render" and type(value) is types.ModuleType:
-            value.__class__ = _RenderPackage
-        super().__setattr__(name, value)
-
-
-sys.modules[__name__].__class__ = _Package
+    return sorted(set(globals()) | set(_API))

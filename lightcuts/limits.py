@@ -1,7 +1,7 @@
 """Limits fixed by the kernels' data layout, and bounds on what sizes a run's work and memory, kept free
 of kernels so the config schema can read them.
 
-SLOT_BITS : low bits of a lightcut heap entry that hold its slot (lightcuts.render.heap)
+SLOT_BITS : low bits of a lightcut heap entry that hold its slot (lightcuts.integrators.heap)
 MAX_CUT : the largest cut, since the cut's scratch holds max_cut + 2 slots
 MAX_COORD : the largest magnitude of a position, a config number or ``tree.c``, and MAX_INTENSITY
     of a light's intensity (per channel): with |x| <= 1e30 a box's squared diagonal L^2 and c^2 stay

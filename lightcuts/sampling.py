@@ -1,5 +1,5 @@
 """Direction sampling shared by the particle tracer (lightcuts.lights.indirect), the eye-path
-continuation (lightcuts.render.continuation) and the path tracer (lightcuts.render.path):
+continuation (lightcuts.integrators.continuation) and the path tracer (lightcuts.integrators.path):
 numba device functions of scalars.
 
 The BRDF is Lambert plus energy-normalised Phong, ``f = rho_d / pi + rho_s (n + 2) / (2 pi)

@@ -38,7 +38,7 @@ def scratch_registries():
     """Builders, metrics, ray casters, scene types and integrators registered in a test are forgotten
     after it."""
     from lightcuts.accel import RAY_CASTERS
-    from lightcuts.render.registry import INTEGRATORS
+    from lightcuts.integrators.registry import INTEGRATORS
     from lightcuts.scene.registry import SCENES
     from lightcuts.trees import BUILDERS, METRICS
 

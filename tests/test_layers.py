@@ -15,7 +15,7 @@ import lightcuts
 PACKAGE = Path(lightcuts.__file__).parent
 #: The stages in their order; a stage may import the ones before it. ``cluster`` is the clustering
 #: engine (kd-tree, Fig. 3/4) that the BVH builders of accel and the light-tree builders share.
-STAGES = ("cluster", "scene", "accel", "lights", "trees", "render", "report", "mitsuba")
+STAGES = ("cluster", "scene", "accel", "lights", "trees", "integrators", "report", "mitsuba")
 #: On top, in their order (each may import the stages and the ones before it): the run pipeline (plan,
 #: stage driver, timing, warm-up, passes, the runs of render / compare / the studies), runs on a Dask
 #: cluster (``distributed``, over the pipeline), the Python API (``api``, which may hand a run to a
@@ -86,7 +86,7 @@ def test_the_package_and_its_api_load_no_stage(module):
     assert not [m for m in loaded if m.split(".")[1:2] and m.split(".")[1] in STAGES + ("distributed", "commands", "cli")], loaded
 
 
-@pytest.mark.parametrize("module", ["lightcuts.render.lightcut", "lightcuts.report.images",
+@pytest.mark.parametrize("module", ["lightcuts.integrators.lightcut", "lightcuts.report.images",
                                     "lightcuts.trees.build", "lightcuts.lights.generate", "lightcuts.accel.embree.embree",
                                     "lightcuts.cluster.agglomerate"])
 def test_stages_load_no_command(module):

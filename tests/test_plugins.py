@@ -19,7 +19,7 @@ from numba import njit
 import lightcuts
 from lightcuts.errors import LightcutsError
 from lightcuts.registry import Registry, declare
-from lightcuts.render.registry import INTEGRATORS
+from lightcuts.integrators.registry import INTEGRATORS
 from lightcuts.scene.registry import SCENES
 from lightcuts.trees import BUILDERS, METRICS, Metric, build_tree, register_metric, tree_spec, validate_tree
 from lightcuts.trees.metric_type import metric_values
@@ -262,7 +262,7 @@ def test_integrator_contract(name, small_cornell):
     and lit, a cut per pixel within its bound (``max_cut`` per eye ray, in its ``cut_unit``); a crop
     window and a pixel list hold exactly those pixels of the whole image; its reference, where its
     ``reference`` trait says it has one, renders the same window (else asking for it is one line)."""
-    from lightcuts.render.registry import Integrator, make_integrator
+    from lightcuts.integrators.registry import Integrator, make_integrator
 
     cfg, scene, caster, lights, trees = small_cornell
     entry = INTEGRATORS.entry(name)
@@ -318,7 +318,7 @@ def test_integrator_refuses_bad_settings_when_made(name):
 
 
 def test_the_lightcuts_entry_is_render_image(small_cornell):
-    from lightcuts.render.lightcut import render_image
+    from lightcuts.integrators.lightcut import render_image
 
     cfg, scene, caster, lights, trees = small_cornell
     a = INTEGRATORS.get("lightcuts")(eps=0.01).render(scene, caster, lights, trees, seed=3)

@@ -107,8 +107,8 @@ def scene_rays(cfg, plan) -> dict:
     """The scene and the rays of both images, cast by Embree where rays depend on hits (the shadow
     rays start at the eye rays' hits): eye (org, dirs), shadow-image eye rays and shadow rays."""
     from lightcuts.accel.registry import make_caster
-    from lightcuts.render.camera import eye_rays
-    from lightcuts.render.driver import shadow_ray_offset
+    from lightcuts.integrators.camera import eye_rays
+    from lightcuts.integrators.driver import shadow_ray_offset
 
     scene = plan.scene()
     cam = scene.camera

@@ -5,7 +5,7 @@ lights are made once; per row the trees are built (``Build``: the numba kernels 
 compiled first, on a few lights, and not timed) and the image rendered (``Image time``: after a
 one-pixel render that loads the render kernel). ``Preprocess total`` is the shared scene and light
 time plus the row's build; ``Summed time`` adds the image time. The error is the per-pixel relative
-luminance error against the all-lights reference (:func:`lightcuts.render.lightcut.render_reference`)
+luminance error against the all-lights reference (:func:`lightcuts.integrators.lightcut.render_reference`)
 on one seeded sample of ``--pixels`` pixels, the same for every row (the reference over a whole
 100K-light image would take half an hour), over the sampled pixels brighter than 1% of the sample's
 mean (:func:`lightcuts.report.images.relative_error`).

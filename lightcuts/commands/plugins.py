@@ -19,7 +19,7 @@ _KINDS = {
     "ray-casters": ("lightcuts.accel.registry", "RAY_CASTERS", "render.ray_caster", "DEFAULT_RAY_CASTER"),
     "builders": ("lightcuts.trees.registry", "BUILDERS", "tree.builder", "DEFAULT_BUILDER"),
     "metrics": ("lightcuts.trees.registry", "METRICS", "tree.metric", "DEFAULT_METRIC"),
-    "integrators": ("lightcuts.render.registry", "INTEGRATORS", "render.integrator", "DEFAULT_INTEGRATOR"),
+    "integrators": ("lightcuts.integrators.registry", "INTEGRATORS", "render.integrator", "DEFAULT_INTEGRATOR"),
 }
 
 

@@ -3,7 +3,7 @@
 The path tracer (``--renderer``) is Mitsuba 3's (default; an independent renderer, the optional
 extra ``pip install 'lightcuts[mitsuba]'``: without it the command stops with one line naming
 that command, exit status 2, before any work; Phong is approximated there) or lightcuts' own
-(:mod:`lightcuts.render.path`: the exact BRDF, emitting triangles only, every bounce). The
+(:mod:`lightcuts.integrators.path`: the exact BRDF, emitting triangles only, every bounce). The
 lightcuts side is rendered here from the same config (the plan's stages, as ``lightcuts render``
 does: all ``render.passes`` passes, with ``render.compensation`` and ``render.representatives`` as
 set), so both images come from the one config and its ``--set`` overrides; an existing
@@ -23,7 +23,7 @@ seconds, and whether any Phong material was approximated; ``report.html`` (both 
 with the error view, the figures; :mod:`lightcuts.report.pages`).
 
 Two things keep the figures honest. Pixels that see an emitter directly
-(:func:`lightcuts.render.primary.emitter_mask`) are left out of the energy ratio and the errors
+(:func:`lightcuts.integrators.primary.emitter_mask`) are left out of the energy ratio and the errors
 (``energy_ratio_frame`` keeps the whole frame's): their radiance is the emitter's in both images and
 can hold most of the frame's energy. And the path tracer's image is the mean of two independent
 halves of ``--spp`` (rounded up to even; seeds ``seed`` and ``seed ^ 1``), whose difference gives
@@ -62,7 +62,7 @@ def add_parser(sub) -> None:
     p.add_argument("--max-depth", type=int, default=-1, help="path length limit of the path tracer (-1: none)")
     p.add_argument("--renderer", choices=("mitsuba", "lightcuts"), default="mitsuba",
                    help="the path tracer: Mitsuba 3 (independent; Phong approximated) or lightcuts' own "
-                        "(lightcuts.render.path: the exact BRDF; emitting triangles only)")
+                        "(lightcuts.integrators.path: the exact BRDF; emitting triangles only)")
     study = p.add_mutually_exclusive_group()
     study.add_argument("--curve", action="store_true",
                        help="error against time: lightcuts passes 1, 2, 4, ... --passes and the path tracer "
@@ -149,10 +149,10 @@ def _file(tracer) -> str:
 
 def _lightcuts_image(args, cfg, plan, scene, envmap, warmup: list) -> tuple[np.ndarray, dict, np.ndarray]:
     """lightcuts' image of the run (all its passes), its figures (lights, seconds) and the pixels
-    that see an emitter directly (:func:`lightcuts.render.primary.emitter_mask`)."""
+    that see an emitter directly (:func:`lightcuts.integrators.primary.emitter_mask`)."""
     from lightcuts.pipeline.passes import render_passes
     from lightcuts.pipeline.warmup import finish_warmup, start_render_warmup
-    from lightcuts.render.primary import emitter_mask
+    from lightcuts.integrators.primary import emitter_mask
 
     t0 = time.perf_counter()
     if plan.caster.trait("warm_render_kernel", False):
@@ -245,7 +245,7 @@ def _run(args, cfg, plan, out_dir: Path, warmup: list, tracer) -> dict:
 
 #: How report.json describes the mask of pixels left out of the comparison's figures.
 EMITTER_MASK = ("pixels that see an emitter (or the environment) directly, left out of the energy ratio and the "
-                "errors: one pinhole ray through each pixel's centre and corners (lightcuts.render.primary)")
+                "errors: one pinhole ray through each pixel's centre and corners (lightcuts.integrators.primary)")
 
 
 def comparison_lines(c: dict, name: str) -> list[str]:

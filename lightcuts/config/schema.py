@@ -326,7 +326,7 @@ class RenderConfig(Strict):
     # A caster name, or {type: NAME, param: value, ...}; resolved and checked by the plan step
     # (lightcuts.accel.registry.RAY_CASTERS declares each caster's parameters).
     ray_caster: PluginSpec = DEFAULT_RAY_CASTER
-    # How each pixel is computed: a name or {type: NAME, ...} of lightcuts.render.registry.INTEGRATORS.
+    # How each pixel is computed: a name or {type: NAME, ...} of lightcuts.integrators.registry.INTEGRATORS.
     integrator: PluginSpec = DEFAULT_INTEGRATOR
     # Render only the window [x0, y0, x1, y1) of the image (pixels), e.g. for reference checks.
     crop: Annotated[list[int], Field(min_length=4, max_length=4)] | None = None

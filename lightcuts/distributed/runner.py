@@ -37,7 +37,7 @@ def tile_task(token, cfg, scene, envmap, lights, trees, window, reference: bool)
     """On a worker: the RenderResult of the crop window ``window`` of the run's image (with
     ``reference``, of the all-lights reference), as a local render computes those pixels."""
     def body(run):
-        from lightcuts.render.registry import make_integrator
+        from lightcuts.integrators.registry import make_integrator
 
         integ = make_integrator(cfg, run.plan.integrator)
         used = None if reference else trees

@@ -40,7 +40,7 @@ def _spec(names):
 def reference_task(token, cfg, scene, envmap, lights, pixels) -> dict:
     """On a worker: the all-lights reference of the pixels ``pixels`` ((K, 2) int64)."""
     def body(run):
-        from lightcuts.render.registry import make_integrator
+        from lightcuts.integrators.registry import make_integrator
 
         forest = run.forest(lights, None) if run.plan.integrator.trait("forest", False) else None
         ref = make_integrator(cfg, run.plan.integrator).reference().render(

@@ -1,7 +1,7 @@
 """Image tiles: the crop windows a cluster renders, and the mosaic that puts their results together.
 
 The render kernel seeds every pixel by its absolute coordinates and writes each pixel once
-(lightcuts.render.lightcut), so a tile, rendered as a crop window of the full image, holds exactly
+(lightcuts.integrators.lightcut), so a tile, rendered as a crop window of the full image, holds exactly
 the pixels of the whole render; the mosaic of all tiles is the local render's image and cut sizes,
 byte for byte, whatever the tile size or the order in which tiles finish.
 """
@@ -59,7 +59,7 @@ class Mosaic:
         them (those of a local render); the clamped energy from the tiles' means (equal to a local
         render's up to float rounding)."""
         from lightcuts.lights.lightset import LUMINANCE
-        from lightcuts.render.driver import RenderResult
+        from lightcuts.integrators.driver import RenderResult
 
         if not self.complete:
             raise ValueError(f"{int((~self.filled).sum())} pixels have no tile")

@@ -52,7 +52,7 @@ class Run:
         """``build_forest(lights, trees)``, made once for all tiles of the same lights and trees (the
         worker keeps one copy of the shipped objects, so identity tells them apart; the entry holds
         them, so their ids cannot be reused)."""
-        from lightcuts.render.forest import build_forest
+        from lightcuts.integrators.forest import build_forest
 
         key = trees is None
         entry = self.forests.get(key)

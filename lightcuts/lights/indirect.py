@@ -272,7 +272,7 @@ class Emitters:
     (E,) int64 triangle ids, cdf (E,) the running sum of ``area * luminance(Le)`` (a triangle is
     drawn in proportion to its power), p0, e1, e2 (E, 3) a corner and the two edges from it
     (a point ``p0 + b1 e1 + b2 e2``), normal (E, 3), unit_power (E, 3). Shared by the particle
-    tracer and the path tracer (lightcuts.render.path)."""
+    tracer and the path tracer (lightcuts.integrators.path)."""
 
     def __init__(self, scene):
         tri = scene.emitters

@@ -62,7 +62,7 @@ def resolve_rows(cfg, builders=None, metrics=None, keys=("--builders", "--metric
     builders, metrics : comma-separated names or sequences (None: :func:`default_builders`, the
     config's metric); keys : how errors name the two options. The rows differ only by their trees,
     so the config's integrator must render from them (its ``forest`` trait)."""
-    from lightcuts.render.registry import INTEGRATORS
+    from lightcuts.integrators.registry import INTEGRATORS
     from lightcuts.trees.spec import config_tree, tree_spec
 
     integrator = INTEGRATORS.resolve(cfg.render.integrator, "render.integrator")
@@ -286,7 +286,7 @@ def save_reference(store, key: str, reference: dict) -> None:
 def _reference(cfg, shared, store, pixels, progress: bool) -> dict:
     """The all-lights reference on the pixel sample: {"image": (K, 3), "seconds", "shadow_rays"}."""
     from lightcuts.pipeline.timing import progress_bar
-    from lightcuts.render.registry import make_integrator
+    from lightcuts.integrators.registry import make_integrator
 
     key = reference_key(cfg, pixels)
     cached = stored_reference(store, key)

@@ -3,7 +3,7 @@
 Both measure lightcuts' images against one long path-traced render of the same config (its
 ``--spp``, seed ``seed + 1``) with :func:`lightcuts.report.images.compare_images` (energy ratio,
 per-pixel and 8x8-block relative luminance error), the pixels that see an emitter directly left
-out (:func:`lightcuts.render.primary.emitter_mask`). The path tracer (:class:`PathTracer`) is
+out (:func:`lightcuts.integrators.primary.emitter_mask`). The path tracer (:class:`PathTracer`) is
 Mitsuba 3's or lightcuts' own with the exact BRDF (``--renderer``).
 
 * :func:`error_curve`: lightcuts' running mean after passes 1, 2, 4, ... N of the config
@@ -60,7 +60,7 @@ def loglog_slope(x, y) -> float | None:
 
 
 #: The path tracers a run can be measured against: Mitsuba 3's (an independent renderer; Phong
-#: approximated) and lightcuts' own (lightcuts.render.path: the exact BRDF; emitters only).
+#: approximated) and lightcuts' own (lightcuts.integrators.path: the exact BRDF; emitters only).
 RENDERERS = ("mitsuba", "lightcuts")
 
 
@@ -98,7 +98,7 @@ class PathTracer:
             return {"renderer": "mitsuba", **mitsuba_version()}
         from lightcuts import __version__
 
-        return {"renderer": "lightcuts", "version": __version__, "variant": "lightcuts.render.path"}
+        return {"renderer": "lightcuts", "version": __version__, "variant": "lightcuts.integrators.path"}
 
     def render(self, cfg, scene, envmap, spp: int, seed: int, integrator: str = "path") -> tuple[np.ndarray, float]:
         if self.name == "mitsuba":
@@ -106,7 +106,7 @@ class PathTracer:
 
             return render_mitsuba(cfg, scene, envmap, spp=spp, integrator=integrator, seed=seed)
         from lightcuts.accel import make_caster
-        from lightcuts.render.path import path_trace
+        from lightcuts.integrators.path import path_trace
 
         if id(scene) not in self._casters:
             self._casters[id(scene)] = (scene, make_caster(scene))
@@ -146,7 +146,7 @@ def error_curve(cfg, plan, scene, envmap, caster, reference: np.ndarray, progres
     :attr:`PathTracer.label` as "method". Its points are its render times (the render call
     alone), lightcuts' the summed pass times. ``tracer``: the path tracer (default Mitsuba's)."""
     from lightcuts.pipeline.passes import render_passes
-    from lightcuts.render.primary import emitter_mask
+    from lightcuts.integrators.primary import emitter_mask
 
     tracer = tracer or PathTracer()
     points = set(pass_counts(cfg.render.passes))
@@ -214,7 +214,7 @@ def energy_split(make_run, passes: int, spp: int, progress: bool = True, log=pri
     "block8_median"}, ...], "references": {key: {"seconds"}}, "images": {key: image}}, one key per
     long render: "path", "path-diffuse" (materials made diffuse) or "direct"."""
     from lightcuts.pipeline.passes import render_passes
-    from lightcuts.render.primary import emitter_mask
+    from lightcuts.integrators.primary import emitter_mask
 
     tracer = tracer or PathTracer()
     runs = []  # every row's run is loaded and planned before any work: a refused one stops here

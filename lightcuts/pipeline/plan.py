@@ -81,7 +81,7 @@ def plan_run(cfg: RunConfig, *, render: bool = False, tree: TreeSpec | None = No
     render : the run renders, so the caster must be callable from the render kernels
     tree : an already resolved TreeSpec (e.g. from command-line options) instead of the config's
     """
-    from lightcuts.render.registry import INTEGRATORS, make_integrator
+    from lightcuts.integrators.registry import INTEGRATORS, make_integrator
     from lightcuts.scene.registry import resolve_scene
 
     scene_type = resolve_scene(cfg.scene)
@@ -125,7 +125,7 @@ def check_work(cfg: RunConfig, scene_type: Resolved | None) -> int:
     from types import SimpleNamespace
 
     from lightcuts.limits import MAX_EYE_RAYS
-    from lightcuts.render.camera import check_crop
+    from lightcuts.integrators.camera import check_crop
     from lightcuts.scene.build import image_size
 
     width, height = image_size(cfg, scene_type)

@@ -136,7 +136,7 @@ def _run(cfg, plan, source, reference: bool, progress: bool, warmup: list, runne
     from lightcuts.pipeline.timing import progress_bar
     from lightcuts.pipeline.plan import tree_meta
     from lightcuts.pipeline.warmup import finish_warmup, start_render_warmup
-    from lightcuts.render.registry import make_integrator
+    from lightcuts.integrators.registry import make_integrator
     from lightcuts.report.images import relative_error
 
     t0 = time.perf_counter()

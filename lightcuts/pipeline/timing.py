@@ -18,11 +18,11 @@ def render_timed(cfg, scene, caster, lights: dict, trees: dict, envmap=None, des
     compiled) on one pixel first, untimed in ``seconds`` (its time is ``load_seconds``), so that
     ``seconds`` measures rendering; a progress bar ``desc`` counts rows. ``integrator``: the plan's
     resolved ``render.integrator`` (else resolved here), built from the config's settings
-    (lightcuts.render.registry.make_integrator); load False skips the one-pixel render (the kernel
+    (lightcuts.integrators.registry.make_integrator); load False skips the one-pixel render (the kernel
     is loaded already; load_seconds is then 0). The image uses ``cfg.seed`` and ``render.crop``."""
     import time
 
-    from lightcuts.render.registry import make_integrator
+    from lightcuts.integrators.registry import make_integrator
 
     integ = make_integrator(cfg, integrator)
     crop = cfg.render.crop

@@ -69,7 +69,7 @@ def is_cached(dispatcher) -> bool:
         return True
 
 
-def start_render_warmup(kernels: str | None = "lightcuts.render.lightcut") -> subprocess.Popen | None:
+def start_render_warmup(kernels: str | None = "lightcuts.integrators.lightcut") -> subprocess.Popen | None:
     """If the render kernel is not in the cache, start a child process that compiles it (and writes
     it to the cache) by rendering one pixel of a small scene; None if it is cached, ``kernels`` is
     None or the child cannot start.

@@ -127,7 +127,7 @@ def compare_images(image: np.ndarray, reference: np.ndarray, block: int = 8, mas
     """An image against a reference of the same shape (H, W, 3).
 
     mask : (H, W) bool, pixels left out of every figure: those that see an emitter directly
-        (:func:`lightcuts.render.primary.emitter_mask`), whose radiance every renderer shares and which
+        (:func:`lightcuts.integrators.primary.emitter_mask`), whose radiance every renderer shares and which
         can hold most of the frame's energy; None leaves none out
     halves : (A, B), two independent renders of the reference with half its samples each
         (reference = (A + B) / 2); None when there are none

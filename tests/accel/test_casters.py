@@ -73,7 +73,7 @@ def test_hits_and_occlusion_equal_brute_force(name):
 
 # An outside kernel caster: brute force over every triangle with the watertight test, registered at
 # run time. The render kernel's cache holds its specialisation under the kernel name below (edit its
-# device functions: delete lightcuts/render/__pycache__/*.nb[ic]).
+# device functions: delete lightcuts/integrators/__pycache__/*.nb[ic]).
 
 @njit(cache=True, error_model="numpy")
 def _brute_hit(data, ox, oy, oz, dx, dy, dz, tnear, tfar, any_hit):
@@ -133,7 +133,7 @@ def test_a_caster_registered_at_run_time_renders(tmp_path, scratch_registries):
     from lightcuts.pipeline.plan import plan_run
     from lightcuts.config import load_config
     from lightcuts.lights.direct import direct_lights
-    from lightcuts.render.lightcut import render_image
+    from lightcuts.integrators.lightcut import render_image
     from lightcuts.scene.cornell import cornell_box
     from lightcuts.scene.scene import Camera
 
@@ -157,7 +157,7 @@ def test_a_caster_registered_at_run_time_renders(tmp_path, scratch_registries):
     ("not a tuple", "is not a KernelCaster"),
 ])
 def test_a_malformed_kernel_caster_is_one_line_error(kernel_caster, message):
-    from lightcuts.render.lightcut import render_image
+    from lightcuts.integrators.lightcut import render_image
     from lightcuts.scene.cornell import cornell_box
 
     class Bad:
@@ -211,7 +211,7 @@ def cornell():
     from lightcuts.lights.direct import direct_lights
     from lightcuts.lights.indirect import indirect_lights
     from lightcuts.lights.lightset import LightSet
-    from lightcuts.render.lightcut import render_image
+    from lightcuts.integrators.lightcut import render_image
     from lightcuts.scene.cornell import cornell_box
     from lightcuts.scene.scene import Camera
     from lightcuts.trees.build import build_tree

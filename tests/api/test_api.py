@@ -128,12 +128,16 @@ def test_import_lightcuts_loads_no_stage():
     r = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
     before, after, is_callable = r.stdout.split("\n")[:3]
     assert eval(before) == ["lightcuts", "lightcuts.errors"]
-    assert not [m for m in eval(after) if m.split(".")[1:2] not in ([], ["api"], ["config"], ["errors"], ["limits"])], after
+    assert not [m for m in eval(after) if m.split(".")[1:2] not in ([], ["api"], ["pipeline"], ["config"], ["errors"], ["limits"])], after
     assert is_callable == "True"
 
 
-def test_render_is_the_stage_package_and_the_api_function():
-    import lightcuts.render.lightcut
+def test_render_is_a_plain_function_and_the_stage_has_its_own_name():
+    import types
 
-    assert lightcuts.render.lightcut.render_image is not None  # still the package
-    assert callable(lightcuts.render) and lightcuts.render.__name__ == "lightcuts.render"
+    import lightcuts.api
+    import lightcuts.integrators.lightcut
+
+    assert lightcuts.render is lightcuts.api.render and isinstance(lightcuts.render, types.FunctionType)
+    assert lightcuts.integrators.lightcut.render_image is not None
+    assert type(sys.modules["lightcuts"]) is types.ModuleType  # no module class swapped in

@@ -471,7 +471,7 @@ def test_output_set_replaces_old_folder_whole(workdir, capsys):
 
 
 _MARKED = """
-import sys, lightcuts.render.registry as r
+import sys, lightcuts.integrators.registry as r
 fn = r.Integrator.render
 def marked(*a, **k):
     print("MARK", file=sys.stderr, flush=True)

@@ -46,8 +46,8 @@ def test_figures_leave_out_the_emitter_and_stand_beside_the_path_tracers_noise(t
     from lightcuts.accel import make_caster
     from lightcuts.pipeline.plan import plan_run
     from lightcuts.config import load_config
-    from lightcuts.render.path import path_trace
-    from lightcuts.render.primary import emitter_mask
+    from lightcuts.integrators.path import path_trace
+    from lightcuts.integrators.primary import emitter_mask
     from lightcuts.report.images import read_exr
 
     out, size = tmp_path / "ref", ["--set", "camera.resolution=[24,24]"]

@@ -162,7 +162,7 @@ def test_environment_map_orientation_matches(mi):
     from lightcuts.config.schema import config_from_dict
     from lightcuts.lights.environment import EnvironmentMap
     from lightcuts.mitsuba.render import render_mitsuba
-    from lightcuts.render.camera import eye_rays
+    from lightcuts.integrators.camera import eye_rays
     from lightcuts.scene.scene import Camera, Scene
 
     rng = np.random.default_rng(3)

@@ -280,7 +280,7 @@ def test_a_one_colour_texture_is_the_same_as_that_albedo_everywhere(tmp_path, re
     hits, gather points, the path tracer) reads the texture: a floor textured in one colour c with
     Kd 1 renders as the floor of albedo c, to float rounding."""
     from lightcuts.accel import make_caster
-    from lightcuts.render.path import path_trace
+    from lightcuts.integrators.path import path_trace
     from lightcuts.scene.build import scene_from_config
 
     walls, floor, lamp = _room_parts()

@@ -1,7 +1,7 @@
 r"""The brute-force reference: every light at every receiver, one shadow ray per light.
 
-The same shading as the lightcut (lightcuts.render.shading, the same shadow rays, clamping and eye
-rays): only the sum over lights differs. ``render_reference`` (lightcuts.render.lightcut) runs this
+The same shading as the lightcut (lightcuts.integrators.shading, the same shadow rays, clamping and eye
+rays): only the sum over lights differs. ``render_reference`` (lightcuts.integrators.lightcut) runs this
 instead of the cut, so a lightcuts image and its reference differ only by the cut's approximation.
 """
 
@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from numba import njit
 
-from lightcuts.render.cut import light_mgv, luminance
+from lightcuts.integrators.cut import light_mgv, luminance
 
 
 @njit(cache=True, error_model="numpy")
@@ -17,8 +17,8 @@ def all_lights(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2,
                clamp_d2, ray_offset, visibility, cdata, buf):
     """Radiance reflected at x towards the viewer: the sum of ``M G V I`` over every light.
 
-    Arguments as lightcuts.render.cut.light_mgv, plus light_i : (L, 3) the lights' RGB intensities.
-    Returns ``(L_r, L_g, L_b, n_lights, shadow_rays, clamp_lost)`` like lightcuts.render.cut.lightcut
+    Arguments as lightcuts.integrators.cut.light_mgv, plus light_i : (L, 3) the lights' RGB intensities.
+    Returns ``(L_r, L_g, L_b, n_lights, shadow_rays, clamp_lost)`` like lightcuts.integrators.cut.lightcut
     (clamp_lost exact here: the luminance that clamping removed).
     """
     t0 = 0.0

@@ -2,5 +2,5 @@
 the pixel and the lens, a gather tree over them, and one cut through the product of the gather tree
 and the light trees."""
 
-from lightcuts.render.multidim.render import (render_multidimensional,  # noqa: F401
+from lightcuts.integrators.multidim.render import (render_multidimensional,  # noqa: F401
                                               render_multidimensional_reference)

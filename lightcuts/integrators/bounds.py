@@ -54,7 +54,7 @@ def orthonormal_frame(z0, z1, z2):
 @njit(cache=True, error_model="numpy", forceinline=True)
 def frame_coefficient(z0, z1, z2):
     """The one division of :func:`orthonormal_frame`, ``-1 / (sign(z2) + z2)`` (in [-1, -1/2]): the
-    light tree's records store it per node (lightcuts.render.forest.pack_nodes), which takes it off the
+    light tree's records store it per node (lightcuts.integrators.forest.pack_nodes), which takes it off the
     cone bound's chain of dependent operations."""
     return -1.0 / ((1.0 if z2 >= 0.0 else -1.0) + z2)
 
@@ -115,7 +115,7 @@ def _cone_ratio(x0, x1, x2, lo0, lo1, lo2, hi0, hi1, hi2, a0, a1, a2, cone_cos, 
     """:func:`cone_cos_bound` as ``(num, qq)``, bound = num / sqrt(qq) with qq > 0 and num >= 0 (not
     clamped at 1): the caller folds the root into the cluster bound's single root and division.
     cone_fa : the axis's :func:`frame_coefficient` (a frame that is orthonormal up to float32
-    rounding of it is covered by the records' widened cones, lightcuts.render.forest.CONE_WIDEN).
+    rounding of it is covered by the records' widened cones, lightcuts.integrators.forest.CONE_WIDEN).
 
     With ``c_lo = m / q`` (``q = sqrt(t2 + m^2)``, :func:`_frame_cos` about the axis over the vectors
     x - y) and ``sin(theta_lo) = sqrt(t2) / q``, ``cos(theta_lo - beta) = (m cos(beta) + sqrt(t2)

@@ -12,19 +12,19 @@ from lightcuts.errors import LightcutsError
 from lightcuts.lights.direct import direct_lights
 from lightcuts.lights.indirect import indirect_lights
 from lightcuts.lights.lightset import LUMINANCE, LightSet
-from lightcuts.render.bounds import DIRECTIONAL, ORIENTED
-from lightcuts.render.camera import camera_params, eye_ray, lens_ray, strata
-from lightcuts.render.forest import LF_POS, NK_LEFT, NK_REP, NK_RIGHT, build_forest
-from lightcuts.render.lightcut import render_image
-from lightcuts.render.multidim import render_multidimensional, render_multidimensional_reference
-from lightcuts.render.multidim.gather import (GP_EXP, GP_NRM, GP_POS, GP_RD, GP_REFL, GP_RS, GP_W, GP_WIDTH)
-from lightcuts.render.multidim.gather_tree import (GK_LEFT, GK_REP, GK_RIGHT, GN_EMAX, GN_EMIN, GN_HI, GN_LO,
+from lightcuts.integrators.bounds import DIRECTIONAL, ORIENTED
+from lightcuts.integrators.camera import camera_params, eye_ray, lens_ray, strata
+from lightcuts.integrators.forest import LF_POS, NK_LEFT, NK_REP, NK_RIGHT, build_forest
+from lightcuts.integrators.lightcut import render_image
+from lightcuts.integrators.multidim import render_multidimensional, render_multidimensional_reference
+from lightcuts.integrators.multidim.gather import (GP_EXP, GP_NRM, GP_POS, GP_RD, GP_REFL, GP_RS, GP_W, GP_WIDTH)
+from lightcuts.integrators.multidim.gather_tree import (GK_LEFT, GK_REP, GK_RIGHT, GN_EMAX, GN_EMIN, GN_HI, GN_LO,
                                                    GN_NAX, GN_NCOS, GN_RAX, GN_RCOS, GN_RD, GN_RS, GN_MIXED, GN_W,
                                                    GN_WIDTH, GK_FIRST, GK_LAST, GK_WIDTH,
                                                    build_gather_tree, gather_representatives)
-from lightcuts.render.multidim.pair_bounds import pair_bound
-from lightcuts.render.multidim.product_cut import light_representatives
-from lightcuts.render.shading import unshadowed_contribution
+from lightcuts.integrators.multidim.pair_bounds import pair_bound
+from lightcuts.integrators.multidim.product_cut import light_representatives
+from lightcuts.integrators.shading import unshadowed_contribution
 from lightcuts.scene.cornell import cornell_box
 from lightcuts.scene.scene import Camera
 from lightcuts.trees.build import build_tree
@@ -314,8 +314,8 @@ def test_warm_kernels_compiles_the_specialisation_renders_use(cornell):
     # The commands compile the integrator's render kernel in a child process through its ``kernels``
     # module's warm_kernels (no lights, another scene): the real renders must find that specialisation.
     from lightcuts.pipeline.warmup import is_cached
-    from lightcuts.render.registry import INTEGRATORS
-    from lightcuts.render.multidim import render as md_render
+    from lightcuts.integrators.registry import INTEGRATORS
+    from lightcuts.integrators.multidim import render as md_render
 
     assert INTEGRATORS.entry("multidimensional").trait("kernels") == md_render.__name__
     scene, caster, camera, lights, trees = cornell

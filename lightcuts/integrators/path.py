@@ -3,7 +3,7 @@ reference of ``lightcuts reference --renderer lightcuts``.
 
 Mitsuba 3 has no Phong BSDF and its stand-in reflects more at oblique angles (``lightcuts.mitsuba.export``),
 so on glossy scenes it is not the same image. This one computes lightcuts' scene as lightcuts defines
-it: the eye rays of ``render.spp`` (lightcuts.render.camera) and their start (lightcuts.render.eye,
+it: the eye rays of ``render.spp`` (lightcuts.integrators.camera) and their start (lightcuts.integrators.eye,
 as every integrator's), Lambert plus energy-normalised Phong, two-sided surfaces, one-sided emitters
 whose back absorbs. At every vertex: next-event estimation (an emitter triangle drawn in proportion
 to its power, a uniform point on it, one shadow ray) and a direction drawn from the BRDF
@@ -13,7 +13,7 @@ sampling (power heuristic); Russian roulette on the throughput from the fourth v
 estimation alone (no BRDF draw follows it). Emitting triangles are the only light it knows: a run
 with a sun or an environment map is refused. Random numbers are a hash of (seed, pixel, eye ray,
 vertex, dimension): the same image on any thread count. The integrator is :class:`Path`
-(registered as ``path``); the image loop is lightcuts.render.driver.
+(registered as ``path``); the image loop is lightcuts.integrators.driver.
 """
 
 from __future__ import annotations
@@ -27,11 +27,11 @@ from lightcuts.hashing import mix64
 from lightcuts.lights.indirect import Emitters
 from lightcuts.parallel import next_task
 from lightcuts.registry import Param, declare
-from lightcuts.render.camera import CAM_POSITION, eye_ray
-from lightcuts.render.driver import BAND_PIXELS, Band, warm
-from lightcuts.render.eye import eye_hit
-from lightcuts.render.registry import INTEGRATORS, Integrator
-from lightcuts.render.shading import facing_normal, material_term
+from lightcuts.integrators.camera import CAM_POSITION, eye_ray
+from lightcuts.integrators.driver import BAND_PIXELS, Band, warm
+from lightcuts.integrators.eye import eye_hit
+from lightcuts.integrators.registry import INTEGRATORS, Integrator
+from lightcuts.integrators.shading import facing_normal, material_term
 from lightcuts.sampling import brdf_pdf, reflect, sample_brdf
 from lightcuts.scene.textures import albedo_at
 
@@ -158,7 +158,7 @@ def _render_band(cdata, cam, seed, spp, sx, sy, x0, x1, y0, y1, width, face_norm
                  emission, env_pixels, env_rotation, env_scale, em_tri, em_cdf, em_p0, em_e1, em_e2, tri_prob,
                  face_area, offset, max_depth, pixels, out_rgb, out_cut, out_rays, out_lost, tasks):
     """Pixels [x0, x1) x [y0, y1) (or the listed ``pixels``) into the band's rows, as every band
-    kernel (lightcuts.render.driver); out_cut : path vertices per eye ray; out_lost stays 0."""
+    kernel (lightcuts.integrators.driver); out_cut : path vertices per eye ray; out_lost stays 0."""
     buf = new_scratch(cdata)
     cols = x1 - x0
     n = (y1 - y0) * cols
@@ -184,7 +184,7 @@ def _render_band(cdata, cam, seed, spp, sx, sy, x0, x1, y0, y1, width, face_norm
 
 
 @INTEGRATORS.register("path")
-@declare(lens=False, cut_unit="path vertices per eye ray", kernels="lightcuts.render.path", reference=False,
+@declare(lens=False, cut_unit="path vertices per eye ray", kernels="lightcuts.integrators.path", reference=False,
          forest=False, params={
              "max_depth": Param(int, MAX_VERTICES, lo=1, hi=MAX_VERTICES,
                                 doc="path vertices at most (1: the emitters seen and their direct light)")})
@@ -216,7 +216,7 @@ class Path(Integrator):
         return None
 
     def band_kernel(self, f) -> Band:
-        """The path kernel's call for the driver's frame ``f`` (lightcuts.render.driver): the scene's
+        """The path kernel's call for the driver's frame ``f`` (lightcuts.integrators.driver): the scene's
         emitting triangles as next-event estimation draws them."""
         if f.env[0].shape[0] > 0:
             raise LightcutsError("envmap: integrator 'path' renders the scene's emitting triangles only (no "
@@ -243,5 +243,5 @@ def path_trace(scene, caster, camera=None, spp: int = 64, seed: int = 0, crop=No
 
 
 def warm_kernels() -> None:
-    """Compile the band kernel into numba's cache (lightcuts.render.driver.warm)."""
+    """Compile the band kernel into numba's cache (lightcuts.integrators.driver.warm)."""
     warm(Path())

@@ -4,7 +4,7 @@ A pixel that sees an emitter (or the environment map) holds that emitter's radia
 every renderer up to its sub-pixel edges, and often most of the frame's energy: averaged in, it
 hides the gap on lit surfaces that a comparison is about (a 3% gap reads as 1%). The mask is made
 from the geometry alone, without rendering: one pinhole ray (from the camera position, as
-:func:`lightcuts.render.camera.eye_ray` forms them) through the centre of each pixel and one through
+:func:`lightcuts.integrators.camera.eye_ray` forms them) through the centre of each pixel and one through
 each pixel corner (the corners shared between neighbours), cast with the scene's ray caster. A
 pixel is masked when any of its five rays hits a triangle with emission > 0 (either side) or, with
 ``environment``, leaves the scene. So pixels on an emitter's edge are masked with it; an emitter
@@ -19,8 +19,8 @@ import numpy as np
 
 def film_directions(camera, fx: np.ndarray, fy: np.ndarray) -> np.ndarray:
     """(..., 3) float64 unit directions of the pinhole rays through film positions (fx, fy) (pixels,
-    (0, 0) the top-left corner of the image), as :func:`lightcuts.render.camera.eye_ray` forms them."""
-    from lightcuts.render.camera import (CAM_FORWARD, CAM_HEIGHT, CAM_RIGHT, CAM_SCALE_X, CAM_SCALE_Y, CAM_UP,
+    (0, 0) the top-left corner of the image), as :func:`lightcuts.integrators.camera.eye_ray` forms them."""
+    from lightcuts.integrators.camera import (CAM_FORWARD, CAM_HEIGHT, CAM_RIGHT, CAM_SCALE_X, CAM_SCALE_Y, CAM_UP,
                                          CAM_WIDTH, camera_params)
 
     cam = camera_params(camera)

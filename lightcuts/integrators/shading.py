@@ -4,10 +4,10 @@ A light's contribution is ``M G V I`` per RGB channel, with ``M = f_r(wi, wo) ma
 (Lambert plus energy-normalised Phong) and G by light type; clamped indirect VPLs use
 ``max(d^2, clamp_d2)`` for ``d^2`` (callers pass ``clamp_d2 = 0`` for a light that is not clamped):
 docs/math.md, "Light contribution" and "Clamping". Surfaces are two-sided (:func:`facing_normal`
-turns the normal N towards the viewer); emitters are one-sided. lightcuts.render.bounds bounds the
+turns the normal N towards the viewer); emitters are one-sided. lightcuts.integrators.bounds bounds the
 same terms over a cluster, and the lightcut and the reference both shade with these functions, so
 their images differ only by the cut. Arguments are scalars (``x0, x1, x2`` for a vector x; ``rd``,
-``rs`` the RGB reflectances), as in lightcuts.render.bounds.
+``rs`` the RGB reflectances), as in lightcuts.integrators.bounds.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from lightcuts.render.bounds import DIRECTIONAL, ORIENTED
+from lightcuts.integrators.bounds import DIRECTIONAL, ORIENTED
 from lightcuts.sampling import reflect  # noqa: F401  (re-exported: the shading functions' home)
 
 

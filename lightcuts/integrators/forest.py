@@ -20,7 +20,7 @@ from numba import njit
 from lightcuts.errors import LightcutsError
 from lightcuts.lights.lightset import LIGHT_TYPES, LightSet
 from lightcuts.parallel import on_threads
-from lightcuts.render.bounds import DIRECTIONAL, OMNI, ORIENTED, frame_coefficient
+from lightcuts.integrators.bounds import DIRECTIONAL, OMNI, ORIENTED, frame_coefficient
 from lightcuts.rounding import down32, up32
 from lightcuts.trees.tree import LightTree
 
@@ -35,7 +35,7 @@ NK_LEFT, NK_RIGHT, NK_REP, NK_ALL_INDIRECT, NK_WIDTH = 0, 1, 2, 3, 4
 # same memory viewed as int32 for the integer columns): box lo (rounded down), hi (rounded up); cone
 # axis, cos (widened); summed RGB intensity; left child (-1 at a leaf; the right child is left + 1),
 # representative and flags (global light id + (2 * type code + all-indirect) << REP_BITS), the cone
-# axis's frame coefficient (lightcuts.render.bounds.frame_coefficient of the float32 axis).
+# axis's frame coefficient (lightcuts.integrators.bounds.frame_coefficient of the float32 axis).
 NB_LO, NB_HI, NB_AXIS, NB_COS, NB_I, NB_LEFT, NB_REP, NB_FA, NB_WIDTH = 0, 3, 6, 9, 10, 13, 14, 15, 16
 #: Bits of a record's NB_REP column that hold the representative; the flags sit above them.
 REP_BITS = 28

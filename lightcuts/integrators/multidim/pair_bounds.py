@@ -5,8 +5,8 @@ contributes ``w_i M_ij G_ij V_ij I_j`` (per RGB channel). The bound is
 ``W_G I_L F_ub C_ub G_ub BOUND_SLACK`` (V_ub = 1) with the terms bounded over both clusters at once
 (docs/math.md, "Multidimensional lightcuts"): directions from any point of G's box to any point of
 L's box lie in the Minkowski box ``D = [lo_L - hi_G, hi_L - lo_G]`` (directional lights: D is L's
-box of directions), so the cosine bounds of lightcuts.render.bounds apply to D, widened by G's
-normal and mirror-direction cones. A gather leaf uses lightcuts.render.bounds' point bound
+box of directions), so the cosine bounds of lightcuts.integrators.bounds apply to D, widened by G's
+normal and mirror-direction cones. A gather leaf uses lightcuts.integrators.bounds' point bound
 (scaled by its weight), so a one-point gather tree gives exactly the lightcut's bounds.
 """
 
@@ -15,11 +15,11 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from lightcuts.render.bounds import (BOUND_SLACK, DIRECTIONAL, ORIENTED, _cone_ratio, box_distance2,
+from lightcuts.integrators.bounds import (BOUND_SLACK, DIRECTIONAL, ORIENTED, _cone_ratio, box_distance2,
                                      cluster_error_bound_framed, frame_coefficient, receiver_frames)
-from lightcuts.render.forest import NB_AXIS, NB_COS, NB_FA, NB_HI, NB_I, NB_LO, NB_REP, REP_BITS
-from lightcuts.render.multidim.gather import GP_EXP, GP_NRM, GP_POS, GP_RD, GP_REFL, GP_RS, GP_W
-from lightcuts.render.multidim.gather_tree import (GK_LEFT, GN_EMAX, GN_EMIN, GN_HI, GN_LO, GN_NAX, GN_NCOS,
+from lightcuts.integrators.forest import NB_AXIS, NB_COS, NB_FA, NB_HI, NB_I, NB_LO, NB_REP, REP_BITS
+from lightcuts.integrators.multidim.gather import GP_EXP, GP_NRM, GP_POS, GP_RD, GP_REFL, GP_RS, GP_W
+from lightcuts.integrators.multidim.gather_tree import (GK_LEFT, GN_EMAX, GN_EMIN, GN_HI, GN_LO, GN_NAX, GN_NCOS,
                                                    GN_RAX, GN_RCOS, GN_RD, GN_RS, GN_W)
 
 
@@ -91,7 +91,7 @@ def _times(a, s):
 @njit(cache=True, error_model="numpy", forceinline=True)
 def point_bound_rgb(gp, i, node_b, node_bi, k, clamp_d2):
     """Bound of the pair (gather point i of gp, light node k): the lightcut's bound at the point
-    (lightcuts.render.bounds.cluster_error_bound_framed) times the point's weight."""
+    (lightcuts.integrators.bounds.cluster_error_bound_framed) times the point's weight."""
     x0, x1, x2 = gp[i, GP_POS], gp[i, GP_POS + 1], gp[i, GP_POS + 2]
     n0, n1, n2 = gp[i, GP_NRM], gp[i, GP_NRM + 1], gp[i, GP_NRM + 2]
     r0, r1, r2 = gp[i, GP_REFL], gp[i, GP_REFL + 1], gp[i, GP_REFL + 2]

@@ -3,7 +3,7 @@ r"""Gather points of one pixel: the hits of its ``spp`` eye rays (pixel strata, 
 A gather point is one eye-ray hit that reflects light: its row in ``gp`` ((spp, GP_WIDTH) float64
 scratch) holds position, unit shading normal N (facing the eye), mirror direction R of wo,
 RGB rho_d and rho_s, Phong exponent and weight 1 / spp (its share of the pixel). Each eye ray starts
-as every integrator's does (lightcuts.render.eye): misses (the environment map) and the fronts of
+as every integrator's does (lightcuts.integrators.eye): misses (the environment map) and the fronts of
 emitters (their emitted radiance) add radiance directly; the front of an emitter is a gather point
 too (it reflects light), its back is black and is none.
 """
@@ -12,9 +12,9 @@ from __future__ import annotations
 
 from numba import njit
 
-from lightcuts.render.camera import lens_ray
-from lightcuts.render.eye import eye_hit
-from lightcuts.render.shading import facing_normal, reflect
+from lightcuts.integrators.camera import lens_ray
+from lightcuts.integrators.eye import eye_hit
+from lightcuts.integrators.shading import facing_normal, reflect
 from lightcuts.scene.textures import albedo_at
 
 # Columns of a gather point's row: position, normal, mirror direction, rho_d, rho_s, exponent, weight.
@@ -26,8 +26,8 @@ def pixel_gather(cdata, buf, cam, seed, spp, sx, sy, px, py, aperture, focus, fa
                  specular, exponent, emission, env_pixels, env_rotation, env_scale, gp):
     """Cast pixel (px, py)'s eye rays and fill gp's first rows with its gather points.
 
-    cam, seed, spp, sx, sy : as lightcuts.render.camera.eye_ray; aperture, focus : the thin lens
-    (lightcuts.render.camera.lens_ray, 0: pinhole); face_normal, albedo, specular, exponent,
+    cam, seed, spp, sx, sy : as lightcuts.integrators.camera.eye_ray; aperture, focus : the thin lens
+    (lightcuts.integrators.camera.lens_ray, 0: pinhole); face_normal, albedo, specular, exponent,
     emission : the scene's per-triangle arrays, tex its textures (lightcuts.scene.textures.albedo_at); env_* : the environment map ((0, 0, 3): none).
     Returns ``(n, r, g, b)``: the number of gather points and the radiance added directly, summed
     over the eye rays (not yet divided by spp).

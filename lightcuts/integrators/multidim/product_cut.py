@@ -4,7 +4,7 @@ The pixel's reflected radiance is the sum over gather points i and lights j of
 ``w_i M_ij G_ij V_ij I_j``. A pair (G, L) of a gather node and a light node stands for all its
 (i, j); its estimate is ``W_G I_L (M G V)(g, j)`` with the representative gather point g of G and
 the representative light j of L chosen for g (multiple representatives: ``lreps[L, g % R]``), and
-its bound is lightcuts.render.multidim.pair_bounds'. The cut starts at (gather root, each light
+its bound is lightcuts.integrators.multidim.pair_bounds'. The cut starts at (gather root, each light
 tree's root) and replaces the pair with the largest bound by its two children on the gather or the
 light side (:func:`refine_gather`) until every bound is <= eps times the pixel's total (luminance)
 or the cut holds max_cut pairs. A child pair with the parent's (g, j) reuses its M G V: no new
@@ -16,19 +16,19 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from lightcuts.render.camera import hash_uniform
+from lightcuts.integrators.camera import hash_uniform
 from lightcuts.accel.kernel_api import occluded
-from lightcuts.render.cut import _light_mg, light_mgv, luminance
-from lightcuts.render.bounds import DIRECTIONAL
-from lightcuts.render.forest import (LF_INDIRECT, LF_NRM, LF_POS, LF_TYPE, NB_HI, NB_I, NB_LEFT, NB_LO, NB_REP, NF_I,
+from lightcuts.integrators.cut import _light_mg, light_mgv, luminance
+from lightcuts.integrators.bounds import DIRECTIONAL
+from lightcuts.integrators.forest import (LF_INDIRECT, LF_NRM, LF_POS, LF_TYPE, NB_HI, NB_I, NB_LEFT, NB_LO, NB_REP, NF_I,
                                      NK_LEFT, NK_REP, NK_RIGHT, REP_BITS)
-from lightcuts.render.heap import SLOT_MASK, entry_bound, heap_entry, heap_push, sift_down
-from lightcuts.render.multidim.gather import GP_EXP, GP_NRM, GP_POS, GP_RD, GP_REFL, GP_RS, GP_W
-from lightcuts.render.multidim.gather_tree import (GK_FIRST, GK_LAST, GK_LEFT, GN_ANG, GN_HI, GN_LO, GN_MIXED, GN_RS,
+from lightcuts.integrators.heap import SLOT_MASK, entry_bound, heap_entry, heap_push, sift_down
+from lightcuts.integrators.multidim.gather import GP_EXP, GP_NRM, GP_POS, GP_RD, GP_REFL, GP_RS, GP_W
+from lightcuts.integrators.multidim.gather_tree import (GK_FIRST, GK_LAST, GK_LEFT, GN_ANG, GN_HI, GN_LO, GN_MIXED, GN_RS,
                                                    GN_W)
-from lightcuts.render.multidim.pair_bounds import pair_bound
-from lightcuts.render.reference import all_lights
-from lightcuts.render.shading import light_geometry, material_term
+from lightcuts.integrators.multidim.pair_bounds import pair_bound
+from lightcuts.integrators.reference import all_lights
+from lightcuts.integrators.shading import light_geometry, material_term
 
 
 @njit(cache=True, nogil=True)
@@ -56,7 +56,7 @@ def light_representatives(node_f, node_k, r_count, seed, lreps):
 @njit(cache=True, error_model="numpy")
 def _mgv(gp, gn, gk, gidx, node, g, j, light_f, clamp_d2, ray_offset, visibility, cdata, buf):
     """M G V (RGB), clamp ratio and shadow rays of light j for gather node ``node`` at its
-    representative point g, per unit weight of the node: a leaf is lightcuts.render.cut.light_mgv
+    representative point g, per unit weight of the node: a leaf is lightcuts.integrators.cut.light_mgv
     at its point; an inner node takes G (and the direction w) at g and the weighted mean over its
     points i of their own materials M_i(w) (normal, mirror direction, rho_d, rho_s, exponent), with
     one shadow ray from g (or, where g faces away from the light, from the first point that faces
@@ -140,14 +140,14 @@ def refine_gather(gn, gk, g, node_b, node_bi, k):
 def product_cut(gp, gn, gk, gidx, greps, groot, node_b, node_bi, roots, light_f, lreps, eps, max_cut, clamp_d2,
                 ray_offset, visibility, cdata, buf, heap, slot_g, slot_l, slot_rep, slot_mgv, slot_ratio, slot_vis):
     """Reflected radiance of the pixel whose gather tree is (gp, gn, gk, groot), gidx the points in
-    the tree's order (lightcuts.render.multidim.gather_tree), greps its representatives (R_G columns).
+    the tree's order (lightcuts.integrators.multidim.gather_tree), greps its representatives (R_G columns).
 
-    node_b, node_bi, roots, light_f : the forest (lightcuts.render.forest); lreps : (K, R)
+    node_b, node_bi, roots, light_f : the forest (lightcuts.integrators.forest); lreps : (K, R)
     :func:`light_representatives`; eps, max_cut : the stop test; clamp_d2, ray_offset, visibility,
-    cdata, buf : as lightcuts.render.cut.light_mgv; heap (uint64), slot_g, slot_l, slot_rep (int64,
+    cdata, buf : as lightcuts.integrators.cut.light_mgv; heap (uint64), slot_g, slot_l, slot_rep (int64,
     the pair's light representative), slot_mgv (cap, 3), slot_ratio, slot_vis (bool: the
     representatives' shadow ray is unoccluded) : scratch for max(max_cut, roots) + 2 pairs.
-    Returns ``(L_r, L_g, L_b, pairs, shadow_rays, clamp_lost)`` like lightcuts.render.cut.lightcut,
+    Returns ``(L_r, L_g, L_b, pairs, shadow_rays, clamp_lost)`` like lightcuts.integrators.cut.lightcut,
     pairs = pairs in the final cut.
     """
     r_count = lreps.shape[1]

@@ -3,7 +3,7 @@ r"""The lightcut's priority queue: a binary max-heap of uint64 entries, each a b
 One integer per entry (:func:`heap_entry`) rather than a float64 key beside an int64 slot: one load
 and one store per level of a sift, and integer compares on its chain of dependent loads. Indices are
 uint64, since numba tests every signed index for a negative value. The array (``heap``, the cut's
-scratch in lightcuts.render.cut) keeps a 0 sentinel after its last entry, so :func:`sift_down` need
+scratch in lightcuts.integrators.cut) keeps a 0 sentinel after its last entry, so :func:`sift_down` need
 not test for a missing right child. Every function is ``forceinline``: all run inside the
 lightcut's refinement loop.
 """
@@ -15,7 +15,7 @@ from llvmlite import ir
 from numba import njit, types
 from numba.extending import intrinsic
 
-from lightcuts.render import SLOT_BITS
+from lightcuts.integrators import SLOT_BITS
 
 
 @intrinsic

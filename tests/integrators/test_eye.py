@@ -1,4 +1,4 @@
-"""The eye-ray start every integrator shares (lightcuts.render.eye): an emitter's front shows its
+"""The eye-ray start every integrator shares (lightcuts.integrators.eye): an emitter's front shows its
 emitted radiance, its back and a miss (without an environment map) are black, exactly, whatever
 the integrator."""
 
@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from lightcuts.accel import make_caster
-from lightcuts.render.camera import eye_rays
-from lightcuts.render.registry import INTEGRATORS
+from lightcuts.integrators.camera import eye_rays
+from lightcuts.integrators.registry import INTEGRATORS
 from lightcuts.scene.scene import Camera, Scene
 
 LE = 2.0

@@ -1,6 +1,6 @@
 """A brute-force path tracer: the oracle of the converging renderer's tests.
 
-Unidirectional, no light sampling: each eye ray (the renderer's own, lightcuts.render.camera) walks
+Unidirectional, no light sampling: each eye ray (the renderer's own, lightcuts.integrators.camera) walks
 the scene with cosine-distributed directions, weighted by ``f cos / pdf = pi f`` with the full BRDF
 ``rho_d / pi + rho_s (n + 2) / (2 pi) cos^n(alpha)``, and adds the emission of every emitter front
 it hits. Surfaces reflect on both sides; an emitter's back absorbs. Russian roulette from the fourth
@@ -20,8 +20,8 @@ from lightcuts.accel.base import kernel_caster_of
 from lightcuts.accel.kernel_api import intersect, new_scratch
 from lightcuts.hashing import mix64
 from lightcuts.parallel import next_task, on_counter
-from lightcuts.render.camera import CAM_POSITION, camera_params, eye_ray, strata
-from lightcuts.render.driver import shadow_ray_offset
+from lightcuts.integrators.camera import CAM_POSITION, camera_params, eye_ray, strata
+from lightcuts.integrators.driver import shadow_ray_offset
 
 MAX_VERTICES = 64
 

@@ -26,8 +26,8 @@ from numba import njit
 
 from lightcuts.accel.kernel_api import intersect
 from lightcuts.hashing import mix64
-from lightcuts.render.cut import lightcut
-from lightcuts.render.shading import facing_normal
+from lightcuts.integrators.cut import lightcut
+from lightcuts.integrators.shading import facing_normal
 from lightcuts.sampling import reflect, sample_brdf
 from lightcuts.scene.textures import albedo_at
 
@@ -61,7 +61,7 @@ def continuation(key, x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs
     towards the viewer that the receiver's lightcut misses, and the rays cast (continuation rays
     and the secondary cuts' shadow rays).
 
-    x, n, r, rd, rs, exponent : the receiver as in lightcuts.render.cut.lightcut (n facing the
+    x, n, r, rd, rs, exponent : the receiver as in lightcuts.integrators.cut.lightcut (n facing the
     viewer, r the mirror direction of the view); l1 : the luminance of its lightcut's estimate;
     key : :func:`path_key`; the scene's per-triangle arrays, the forest, cut settings and scratch as
     for the render kernel; stochastic : the secondary cuts use stochastic representatives.

@@ -3,7 +3,7 @@ r"""The image driver every integrator shares: from a window of the image to a :c
 :func:`render_window` checks the per-run inputs (crop window or pixel list, seed, a kernel-callable
 ray caster), makes the scene's and the environment's kernel arrays and the light forest the
 integrator asks for, then runs the integrator's band kernel (:meth:`Integrator.band_kernel
-<lightcuts.render.registry.Integrator.band_kernel>`) over bands of rows, reporting progress after
+<lightcuts.integrators.registry.Integrator.band_kernel>`) over bands of rows, reporting progress after
 each, and sums the per-pixel outputs into the result.
 
 A band kernel is called as ``kernel(*head, x0, x1, y0, y1, *tail, pixels, out_rgb, out_cut,
@@ -30,7 +30,7 @@ from lightcuts.accel.base import KernelCaster, kernel_caster_of
 from lightcuts.errors import LightcutsError
 from lightcuts.lights.lightset import LUMINANCE
 from lightcuts.parallel import on_counter
-from lightcuts.render.camera import camera_params, check_crop, strata
+from lightcuts.integrators.camera import camera_params, check_crop, strata
 
 #: Shadow-ray origin offset (and gap before a light), as a fraction of the scene's size or its
 #: distance from the origin, whichever is larger: Embree works in float32 (7 digits), so this is
@@ -158,7 +158,7 @@ def render_window(integrator, scene, caster, lights: dict, trees: dict | None, *
                   envmap=None, seed: int = 0, crop=None, pixels=None,
                   progress: Callable[[int], object] | None = None) -> RenderResult:
     """The integrator's image of the window ``crop`` (or of the pixel list ``pixels``); arguments as
-    :meth:`lightcuts.render.registry.Integrator.render`. LightcutsError naming the key for bad
+    :meth:`lightcuts.integrators.registry.Integrator.render`. LightcutsError naming the key for bad
     per-run inputs."""
     t_start = time.perf_counter()
     camera = camera if camera is not None else scene.camera

@@ -22,8 +22,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from lightcuts.render.camera import hash_uniform
-from lightcuts.render.multidim.gather import GP_EXP, GP_NRM, GP_POS, GP_RD, GP_REFL, GP_RS, GP_W
+from lightcuts.integrators.camera import hash_uniform
+from lightcuts.integrators.multidim.gather import GP_EXP, GP_NRM, GP_POS, GP_RD, GP_REFL, GP_RS, GP_W
 
 (GN_LO, GN_HI, GN_NLO, GN_NHI, GN_RLO, GN_RHI, GN_NAX, GN_NCOS, GN_RAX, GN_RCOS, GN_RD, GN_RS, GN_EMIN,
  GN_EMAX, GN_W, GN_ANG, GN_MIXED, GN_WIDTH) = 0, 3, 6, 9, 12, 15, 18, 21, 22, 25, 26, 29, 32, 33, 34, 35, 36, 37

@@ -7,7 +7,7 @@ LightcutsError naming the config key), and :meth:`Integrator.render` renders a w
 forest, made once for many windows: :meth:`Integrator.forest`) and the per-run inputs (camera,
 environment map, seed, progress). :meth:`Integrator.reference` is its brute-force counterpart over
 the same samples, against which its errors are measured. Every integrator renders through the one
-image driver (lightcuts.render.driver), supplying its band kernel call (:meth:`Integrator.band_kernel`).
+image driver (lightcuts.integrators.driver), supplying its band kernel call (:meth:`Integrator.band_kernel`).
 
 The registry's entries are the integrator classes, each beside its kernels (its module, listed in
 ``builtins``, registers it when imported). The config names one as ``render.integrator: NAME`` or
@@ -27,10 +27,10 @@ lights and trees are made (lightcuts.pipeline.warmup). Adding an integrator is a
 ``lightcuts.integrators`` naming the class).
 
 Entries: ``lightcuts``, a lightcut per eye ray through every light tree (Walter et al. 2005,
-lightcuts.render.lightcut); ``multidimensional``, one cut per pixel through the product of a gather
+lightcuts.integrators.lightcut); ``multidimensional``, one cut per pixel through the product of a gather
 tree over the pixel's eye-ray hits and the light trees (Walter et al. 2006,
-lightcuts.render.multidim); ``path``, a path tracer with lightcuts' own BRDF over the scene's
-emitting triangles (lightcuts.render.path), which uses no lights or trees.
+lightcuts.integrators.multidim); ``path``, a path tracer with lightcuts' own BRDF over the scene's
+emitting triangles (lightcuts.integrators.path), which uses no lights or trees.
 """
 
 from __future__ import annotations
@@ -39,11 +39,11 @@ import math
 
 from lightcuts.errors import LightcutsError
 from lightcuts.registry import Registry, declaration
-from lightcuts.render import MAX_CUT
+from lightcuts.integrators import MAX_CUT
 
 INTEGRATORS: Registry = Registry("integrator", group="lightcuts.integrators",
-                                 builtins=("lightcuts.render.lightcut", "lightcuts.render.multidim.render",
-                                           "lightcuts.render.path"))
+                                 builtins=("lightcuts.integrators.lightcut", "lightcuts.integrators.multidim.render",
+                                           "lightcuts.integrators.path"))
 
 
 def check_count(value, key: str, hi: int | None = None) -> int:
@@ -64,7 +64,7 @@ def check_non_negative(value, key: str) -> float:
 class Integrator:
     """An integrator (module docstring): its settings, checked when made, and its render.
 
-    spp : eye rays per pixel (stratified, jittered: lightcuts.render.camera). ``eps``, ``max_cut``
+    spp : eye rays per pixel (stratified, jittered: lightcuts.integrators.camera). ``eps``, ``max_cut``
     (the bound of a pixel's cut per eye ray, in its ``cut_unit``) and ``brute_force`` (it is a
     reference) are what its RenderResults record.
     """
@@ -93,9 +93,9 @@ class Integrator:
         return declaration(type(self))["params"][name].check(value, f"render.integrator.{name}")
 
     def forest(self, lights: dict, trees: dict | None):
-        """The light forest its renders take (lightcuts.render.forest.build_forest of the lights and
+        """The light forest its renders take (lightcuts.integrators.forest.build_forest of the lights and
         trees; a reference's of the lights alone), or None if it uses none."""
-        from lightcuts.render.forest import build_forest
+        from lightcuts.integrators.forest import build_forest
 
         return build_forest(lights, None if self.brute_force else trees)
 
@@ -104,14 +104,14 @@ class Integrator:
         raise LightcutsError(f"render.integrator: {type(self).__name__} has no brute-force reference")
 
     def band_kernel(self, frame):
-        """Its band kernel call (lightcuts.render.driver.Band) for the driver's ``frame``
-        (lightcuts.render.driver.Frame)."""
+        """Its band kernel call (lightcuts.integrators.driver.Band) for the driver's ``frame``
+        (lightcuts.integrators.driver.Frame)."""
         raise NotImplementedError
 
     def render(self, scene, caster, lights: dict, trees: dict | None = None, *, forest=None, camera=None,
                envmap=None, seed: int = 0, crop=None, pixels=None, progress=None):
         """Render the window ``crop`` of the image (or the pixels ``pixels``): a
-        lightcuts.render.driver.RenderResult.
+        lightcuts.integrators.driver.RenderResult.
 
         scene : lightcuts.scene.Scene; caster : a kernel-callable ray caster over it (open during the
         call); lights : {type: LightSet}; trees : {type: LightTree}, one per light set (unused by a
@@ -124,7 +124,7 @@ class Integrator:
         render); progress : called with the number of rows finished after each band.
         LightcutsError naming the key for bad inputs.
         """
-        from lightcuts.render.driver import render_window
+        from lightcuts.integrators.driver import render_window
 
         return render_window(self, scene, caster, lights, trees, forest=forest, camera=camera, envmap=envmap,
                              seed=seed, crop=crop, pixels=pixels, progress=progress)

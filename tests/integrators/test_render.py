@@ -15,11 +15,11 @@ from lightcuts.lights.direct import direct_lights
 from lightcuts.lights.environment import EnvironmentMap
 from lightcuts.lights.indirect import indirect_lights
 from lightcuts.lights.lightset import LUMINANCE, LightSet
-from lightcuts.render import MAX_CUT
-from lightcuts.render.camera import eye_rays, strata
-from lightcuts.render.forest import (LF_INDIRECT, LF_POS, NF_HI, NF_I, NF_LO, NK_ALL_INDIRECT, NK_LEFT, NK_REP,
+from lightcuts.integrators import MAX_CUT
+from lightcuts.integrators.camera import eye_rays, strata
+from lightcuts.integrators.forest import (LF_INDIRECT, LF_POS, NF_HI, NF_I, NF_LO, NK_ALL_INDIRECT, NK_LEFT, NK_REP,
                                      NK_RIGHT, build_forest)
-from lightcuts.render.lightcut import render_image, render_reference
+from lightcuts.integrators.lightcut import render_image, render_reference
 from lightcuts.scene.cornell import cornell_box
 from lightcuts.scene.scene import Camera, Scene
 from lightcuts.trees.build import build_tree
@@ -368,7 +368,7 @@ def test_warm_kernels_compiles_the_specialisation_renders_use(cornell):
     # lightcuts.pipeline.warmup compiles the render kernel in a child process through warm_kernels
     # (no lights, another scene): the real renders must then find that very specialisation in the cache.
     from lightcuts.pipeline.warmup import is_cached
-    from lightcuts.render.lightcut import _render_band, warm_kernels
+    from lightcuts.integrators.lightcut import _render_band, warm_kernels
 
     scene, caster, _, lights, trees, _ = cornell
     warm_kernels()

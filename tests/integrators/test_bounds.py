@@ -1,4 +1,4 @@
-"""Property tests of the lightcut error bounds (lightcuts.render.bounds) against exact shading.
+"""Property tests of the lightcut error bounds (lightcuts.integrators.bounds) against exact shading.
 
 For random receivers, materials and clusters of lights of all three types, the bound I_C M_ub G_ub
 must be >= the contribution M G I of every light the box (and cone) holds, channel by channel; the
@@ -15,13 +15,13 @@ from numba import njit
 
 from lightcuts.errors import LightcutsError
 from lightcuts.lights.lightset import LUMINANCE, LightSet
-from lightcuts.render.bounds import (BOUND_SLACK, DIRECTIONAL, OMNI, ORIENTED, box_distance2, cluster_error_bound,
+from lightcuts.integrators.bounds import (BOUND_SLACK, DIRECTIONAL, OMNI, ORIENTED, box_distance2, cluster_error_bound,
                                      cone_cos_bound, geometric_bound, material_bound, max_cos_in_box)
-from lightcuts.render.bounds import receiver_frames
-from lightcuts.render.cut import _light_mg, node_bound
-from lightcuts.render.forest import (LF_INDIRECT, LF_NRM, LF_POS, LF_TYPE, NB_I, NB_REP, NF_I, NK_LEFT, NK_REP,
+from lightcuts.integrators.bounds import receiver_frames
+from lightcuts.integrators.cut import _light_mg, node_bound
+from lightcuts.integrators.forest import (LF_INDIRECT, LF_NRM, LF_POS, LF_TYPE, NB_I, NB_REP, NF_I, NK_LEFT, NK_REP,
                                      NK_RIGHT, REP_BITS, build_forest, pack_nodes)
-from lightcuts.render.shading import facing_normal, reflect, unshadowed_contribution
+from lightcuts.integrators.shading import facing_normal, reflect, unshadowed_contribution
 from lightcuts.trees.build import build_tree
 
 SETTINGS = settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -236,7 +236,7 @@ def test_oriented_lights_facing_away_have_zero_bound():
 
 
 # The kernel's own path: node records packed to float32 (boxes rounded outwards, cones widened), the
-# bound read from them by lightcuts.render.cut.node_bound, against every light below each node.
+# bound read from them by lightcuts.integrators.cut.node_bound, against every light below each node.
 
 @njit(cache=True)
 def _packed_bounds(node_b, node_bi, x, n, r, rd, rs, exponent, clamp_d2, out):
@@ -293,7 +293,7 @@ def test_packed_node_records_bound_every_light_below_them(builder):
         bounds, contrib = np.empty(k_nodes), np.empty((len(forest.light_f), 3))
         inner = left >= 0
         # A record holds the summed intensity rounded to the nearest float32 (estimate and bound
-        # alike; lightcuts.render.forest.pack_nodes): the lights' sum is scaled by the same rounding.
+        # alike; lightcuts.integrators.forest.pack_nodes): the lights' sum is scaled by the same rounding.
         rounding = np.divide(forest.node_b[:, NB_I:NB_I + 3], forest.node_f[:, NF_I:NF_I + 3],
                              out=np.ones((k_nodes, 3)), where=forest.node_f[:, NF_I:NF_I + 3] > 0)
         checked = 0

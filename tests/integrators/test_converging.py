@@ -3,7 +3,7 @@ progressive passes, against exact furnace radiance and a brute-force path tracer
 
 Furnaces: a closed surface of albedo a (diffuse, or with a Phong lobe) emitting Le everywhere. A
 diffuse one has the radiance Le / (1 - a) at every point, exactly; a glossy one's radiance comes
-from the path tracer of tests/render/pathtracer.py, itself checked on the diffuse furnace first.
+from the path tracer of tests/integrators/pathtracer.py, itself checked on the diffuse furnace first.
 Every comparison is seeded, so each test gives the same verdict on every run.
 """
 
@@ -19,7 +19,7 @@ from lightcuts.pipeline.passes import pass_seed
 from lightcuts.lights.direct import direct_lights
 from lightcuts.lights.indirect import indirect_lights
 from lightcuts.lights.lightset import LUMINANCE, LightSet
-from lightcuts.render.lightcut import render_image, render_reference
+from lightcuts.integrators.lightcut import render_image, render_reference
 from lightcuts.scene.cornell import cornell_box
 from lightcuts.scene.scene import Camera, Scene
 from lightcuts.trees.build import build_tree
@@ -170,10 +170,10 @@ def test_vpls_and_the_continuation_partition_the_paths(glossy_box):
 
 
 def test_the_exact_path_tracer_agrees_with_the_oracle(glossy_box, oracle_furnaces):
-    """lightcuts.render.path (next-event estimation and BRDF draws with MIS) against the
+    """lightcuts.integrators.path (next-event estimation and BRDF draws with MIS) against the
     brute-force oracle on the glossy room (five regions within 3 standard errors) and the diffuse
     furnace's exact radiance (within 0.5%)."""
-    from lightcuts.render.path import path_trace as exact
+    from lightcuts.integrators.path import path_trace as exact
 
     scene, caster, batches = glossy_box
     truth = regions(batches)

@@ -14,8 +14,8 @@ import lightcuts
 from lightcuts.accel import make_caster
 from lightcuts.pipeline.passes import pass_seed
 from lightcuts.errors import LightcutsError
-from lightcuts.render.path import path_trace
-from lightcuts.render.registry import make_integrator
+from lightcuts.integrators.path import path_trace
+from lightcuts.integrators.registry import make_integrator
 
 from conftest import cli_recording_work
 
@@ -108,8 +108,8 @@ def test_warm_kernels_compiles_the_specialisation_renders_use():
     """The commands compile the path kernel in a child process through warm_kernels (the ``kernels``
     trait's module; another scene, no lights): a run's render then finds that very specialisation."""
     from lightcuts.pipeline.warmup import is_cached
-    from lightcuts.render import path
-    from lightcuts.render.registry import INTEGRATORS
+    from lightcuts.integrators import path
+    from lightcuts.integrators.registry import INTEGRATORS
 
     assert INTEGRATORS.entry("path").trait("kernels") == path.__name__
     path.warm_kernels()

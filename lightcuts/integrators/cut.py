@@ -1,11 +1,11 @@
 r"""The lightcut at one receiver (Walter et al. 2005, section 4): numba device functions over the forest.
 
-A cut is a set of forest nodes (lightcuts.render.forest) that covers every light once; its value is
+A cut is a set of forest nodes (lightcuts.integrators.forest) that covers every light once; its value is
 the sum of the nodes' estimates ``M_j G_j V_j I_C``, and an inner node's error bound is
 ``I_C M_ub G_ub`` (docs/math.md, "Cluster estimate" and "Error bound"). From the roots, the node
 with the largest bound is replaced by its children until that bound is <= eps times the luminance
 of the total, or the cut holds ``max_cut`` nodes (docs/math.md, "The cut and its stop test");
-one max-heap over all trees (lightcuts.render.heap) picks the node. A child with its parent's
+one max-heap over all trees (lightcuts.integrators.heap) picks the node. A child with its parent's
 representative reuses the parent's ``M G V``, so a refinement casts one shadow ray at most; a node
 with a zero bound never enters the heap. Shadow rays wait in packets of ``width`` (8, or 4 without
 native 8-wide packets) without changing the cut (docs/math.md, "Deferred visibility").
@@ -30,11 +30,11 @@ from lightcuts.accel.kernel_api import occluded, packet_occluded
 from lightcuts.hashing import mix64
 from lightcuts.accel.packets import lane_occluded, packet_set_ray
 from lightcuts.lights.lightset import LUMINANCE
-from lightcuts.render.bounds import DIRECTIONAL, cluster_error_bound_framed, receiver_frames
-from lightcuts.render.forest import (LF_INDIRECT, LF_NRM, LF_POS, LF_TYPE, NB_AXIS, NB_COS, NB_FA, NB_HI, NB_I,
+from lightcuts.integrators.bounds import DIRECTIONAL, cluster_error_bound_framed, receiver_frames
+from lightcuts.integrators.forest import (LF_INDIRECT, LF_NRM, LF_POS, LF_TYPE, NB_AXIS, NB_COS, NB_FA, NB_HI, NB_I,
                                      NB_LEFT, NB_LO, NB_REP, REP_BITS, REP_MASK)
-from lightcuts.render.heap import SLOT_MASK, entry_bound, heap_entry, heap_push, sift_down
-from lightcuts.render.shading import light_geometry, material_term
+from lightcuts.integrators.heap import SLOT_MASK, entry_bound, heap_entry, heap_push, sift_down
+from lightcuts.integrators.shading import light_geometry, material_term
 
 LUM_R, LUM_G, LUM_B = (float(v) for v in LUMINANCE)
 
@@ -118,7 +118,7 @@ def _record_bound(x0, x1, x2, n0, n1, n2, r0, r1, r2, fr, rd0, rd1, rd2, rs0, rs
 def node_bound(k, node_b, node_bi, x0, x1, x2, n0, n1, n2, r0, r1, r2, fr, rd0, rd1, rd2, rs0, rs1, rs2, exponent,
                clamp_d2):
     """Error bound of node k in luminance; 0 for a leaf (its estimate is exact). fr : the receiver's
-    frames (lightcuts.render.bounds.receiver_frames)."""
+    frames (lightcuts.integrators.bounds.receiver_frames)."""
     if node_bi[k, NB_LEFT] < 0:
         return 0.0
     f = node_b

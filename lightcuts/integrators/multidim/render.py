@@ -1,10 +1,10 @@
 r"""The multidimensional integrator's kernel (or its brute-force reference's): a product cut per pixel.
 
-Per pixel: its gather points (lightcuts.render.multidim.gather: ``spp`` eye rays over the pixel and
+Per pixel: its gather points (lightcuts.integrators.multidim.gather: ``spp`` eye rays over the pixel and
 the lens), its gather tree (gather_tree), then one product cut (product_cut) over the gather tree
 and the light forest, or, for the reference, every gather point with every light. The integrator
 is :class:`Multidimensional` (registered as ``multidimensional``); the image loop around the band
-kernel, shared with the other integrators, is lightcuts.render.driver (every random number a hash of
+kernel, shared with the other integrators, is lightcuts.integrators.driver (every random number a hash of
 the seed and the pixel, so images do not depend on the thread count). The result's ``cut_size`` is the number of
 (gather, light) pairs in each pixel's cut (for the reference: gather points x lights).
 """
@@ -20,14 +20,14 @@ from lightcuts.accel.kernel_api import new_scratch
 from lightcuts.errors import LightcutsError
 from lightcuts.parallel import next_task
 from lightcuts.registry import Param, declare
-from lightcuts.render import MAX_CUT
-from lightcuts.render.camera import CAM_WIDTH
-from lightcuts.render.driver import BAND_PIXELS, Band, RenderResult, band_pixel, warm
-from lightcuts.render.lightcut import CHUNK
-from lightcuts.render.multidim.gather import GP_WIDTH, pixel_gather
-from lightcuts.render.multidim.gather_tree import GK_WIDTH, GN_WIDTH, build_gather_tree, gather_representatives
-from lightcuts.render.multidim.product_cut import all_pairs, light_representatives, product_cut
-from lightcuts.render.registry import INTEGRATORS, CutIntegrator, check_non_negative
+from lightcuts.integrators import MAX_CUT
+from lightcuts.integrators.camera import CAM_WIDTH
+from lightcuts.integrators.driver import BAND_PIXELS, Band, RenderResult, band_pixel, warm
+from lightcuts.integrators.lightcut import CHUNK
+from lightcuts.integrators.multidim.gather import GP_WIDTH, pixel_gather
+from lightcuts.integrators.multidim.gather_tree import GK_WIDTH, GN_WIDTH, build_gather_tree, gather_representatives
+from lightcuts.integrators.multidim.product_cut import all_pairs, light_representatives, product_cut
+from lightcuts.integrators.registry import INTEGRATORS, CutIntegrator, check_non_negative
 
 #: Light representatives per light node (1: the tree's own only): the integrator's default.
 DEFAULT_REPRESENTATIVES = 4
@@ -39,7 +39,7 @@ def _render_band(cdata, cam, seed, spp, sx, sy, aperture, focus, x0, x1, y0, y1,
                  env_scale, eps, max_cut, clamp_d2, ray_offset, visibility, reference, pixels, out_rgb, out_cut,
                  out_rays, out_lost, tasks):
     """Pixels [x0, x1) x [y0, y1) (or the listed ``pixels``) into the band's rows, as every band
-    kernel (lightcuts.render.driver); out_cut : pairs in the cut per pixel."""
+    kernel (lightcuts.integrators.driver); out_cut : pairs in the cut per pixel."""
     cols = x1 - x0
     n = (y1 - y0) * cols
     cap = max(max_cut, roots.shape[0]) + 2
@@ -96,7 +96,7 @@ def _render_band(cdata, cam, seed, spp, sx, sy, aperture, focus, x0, x1, y0, y1,
 
 
 @INTEGRATORS.register("multidimensional")
-@declare(lens=True, cut_unit="pairs per pixel", kernels="lightcuts.render.multidim.render", reference=True,
+@declare(lens=True, cut_unit="pairs per pixel", kernels="lightcuts.integrators.multidim.render", reference=True,
          forest=True, params={
              "representatives": Param(int, DEFAULT_REPRESENTATIVES, lo=1, hi=64,
                                       doc="light representatives per light node (1: the tree's own only)"),
@@ -146,7 +146,7 @@ class Multidimensional(CutIntegrator):
                                 gather_representatives=self.gather_representatives, all_pairs=True)
 
     def band_kernel(self, f) -> Band:
-        """The product cut kernel's call for the driver's frame ``f`` (lightcuts.render.driver): the
+        """The product cut kernel's call for the driver's frame ``f`` (lightcuts.integrators.driver): the
         light representatives of every forest node drawn, the pixel's pair budget (``max_cut`` per
         gather point, up to MAX_CUT) and the focus distance set."""
         fo, spp = f.forest, self.spp
@@ -172,7 +172,7 @@ def render_multidimensional(scene, caster, lights: dict, trees: dict | None, cam
                             forest=None) -> RenderResult:
     """The :class:`Multidimensional` integrator of these settings (with ``reference=True``, its
     reference: every gather point with every light; ``trees`` may be None) rendering in one call;
-    arguments as the integrator's constructor and :meth:`~lightcuts.render.registry.Integrator.render`."""
+    arguments as the integrator's constructor and :meth:`~lightcuts.integrators.registry.Integrator.render`."""
     integ = Multidimensional(spp=spp, eps=eps, max_cut=max_cut, clamp=clamp, clamp_min_distance=clamp_min_distance,
                              visibility=visibility, aperture=aperture, focus_distance=focus_distance,
                              representatives=representatives, gather_representatives=gather_representatives)
@@ -189,5 +189,5 @@ def render_multidimensional_reference(scene, caster, lights: dict, camera=None, 
 
 
 def warm_kernels() -> None:
-    """Compile the band kernel into numba's cache (lightcuts.render.driver.warm)."""
+    """Compile the band kernel into numba's cache (lightcuts.integrators.driver.warm)."""
     warm(Multidimensional(spp=1))

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from lightcuts.accel import make_caster
-from lightcuts.render.camera import eye_rays, hash_uniform
-from lightcuts.render.primary import emitter_mask, film_directions
+from lightcuts.integrators.camera import eye_rays, hash_uniform
+from lightcuts.integrators.primary import emitter_mask, film_directions
 from lightcuts.scene.cornell import cornell_box
 from lightcuts.scene.scene import Camera
 

@@ -1,14 +1,14 @@
 r"""The start of every eye path: what an eye ray sees before any light is gathered.
 
-One device function shared by the lightcut kernel (lightcuts.render.lightcut), the gather points of
-multidimensional lightcuts (lightcuts.render.multidim.gather) and the path tracer
-(lightcuts.render.path), so all three agree on the first hit: a miss shows the environment map's
+One device function shared by the lightcut kernel (lightcuts.integrators.lightcut), the gather points of
+multidimensional lightcuts (lightcuts.integrators.multidim.gather) and the path tracer
+(lightcuts.integrators.path), so all three agree on the first hit: a miss shows the environment map's
 radiance (black without one); the front of an emitter shows its emitted radiance and is shaded like
 any surface (it reflects light too); its back is black and ends the path (emitters are one-sided and
 absorb, as in lightcuts.lights.indirect); any other hit is shaded. Surfaces are two-sided.
 
 numba caches the kernels that call this keyed on their own modules' files: after editing it, delete
-``lightcuts/render/**/__pycache__/*.nb[ic]``.
+``lightcuts/integrators/**/__pycache__/*.nb[ic]``.
 """
 
 from __future__ import annotations

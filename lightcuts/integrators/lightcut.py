@@ -1,14 +1,14 @@
 r"""The lightcuts integrator's kernel (or its brute-force reference's): a lightcut per eye ray.
 
-Per eye ray (lightcuts.render.camera: ``spp`` stratified jittered samples per pixel) the eye-ray
-start (lightcuts.render.eye: the environment on a miss, an emitter front's emission, black behind
-an emitter); any hit to shade is shaded by a lightcut through all trees (lightcuts.render.cut) or,
-for the reference, by every light (lightcuts.render.reference); surfaces are two-sided. The trees
-and lights are flattened into one forest (lightcuts.render.forest.build_forest), so one kernel
+Per eye ray (lightcuts.integrators.camera: ``spp`` stratified jittered samples per pixel) the eye-ray
+start (lightcuts.integrators.eye: the environment on a miss, an emitter front's emission, black behind
+an emitter); any hit to shade is shaded by a lightcut through all trees (lightcuts.integrators.cut) or,
+for the reference, by every light (lightcuts.integrators.reference); surfaces are two-sided. The trees
+and lights are flattened into one forest (lightcuts.integrators.forest.build_forest), so one kernel
 specialisation serves every light type and the reference. The integrator is :class:`Lightcuts`
-(registered as ``lightcuts``); the image loop around the band kernel is lightcuts.render.driver.
+(registered as ``lightcuts``); the image loop around the band kernel is lightcuts.integrators.driver.
 
-Shadow rays start ``ray_offset`` (lightcuts.render.driver.shadow_ray_offset, world units) off the
+Shadow rays start ``ray_offset`` (lightcuts.integrators.driver.shadow_ray_offset, world units) off the
 surface along the shading normal (on the light's side) and stop as far short of a light at a point
 (lights sit on surfaces); rays to directional lights are unbounded. Clamping applies to indirect
 VPLs in the estimate and the bound alike (docs/math.md, "Clamping").
@@ -16,7 +16,7 @@ VPLs in the estimate and the bound alike (docs/math.md, "Clamping").
 The kernel compiles once per kernel caster (the tag in the caster's data, lightcuts.accel.kernel_api)
 and calls that caster's device functions directly. numba caches each module's kernels keyed on that
 module's source file only: after editing bounds, shading, forest, heap, cut, reference, camera, eye,
-driver or a caster's device functions (lightcuts/accel), delete ``lightcuts/render/__pycache__/*.nb[ic]``
+driver or a caster's device functions (lightcuts/accel), delete ``lightcuts/integrators/__pycache__/*.nb[ic]``
 (or touch this file), or a cached kernel built from the old code may still run.
 """
 
@@ -34,14 +34,14 @@ from lightcuts.hashing import mix64
 from lightcuts.limits import MAX_CONTINUATION_RAYS
 from lightcuts.parallel import next_task
 from lightcuts.registry import declare
-from lightcuts.render.camera import CAM_POSITION, CAM_WIDTH, eye_ray
-from lightcuts.render.continuation import continuation, path_key
-from lightcuts.render.cut import lightcut, luminance
-from lightcuts.render.driver import BAND_PIXELS, Band, RenderResult, band_pixel, warm
-from lightcuts.render.eye import eye_hit
-from lightcuts.render.reference import all_lights
-from lightcuts.render.registry import INTEGRATORS, CutIntegrator, check_count
-from lightcuts.render.shading import facing_normal, reflect
+from lightcuts.integrators.camera import CAM_POSITION, CAM_WIDTH, eye_ray
+from lightcuts.integrators.continuation import continuation, path_key
+from lightcuts.integrators.cut import lightcut, luminance
+from lightcuts.integrators.driver import BAND_PIXELS, Band, RenderResult, band_pixel, warm
+from lightcuts.integrators.eye import eye_hit
+from lightcuts.integrators.reference import all_lights
+from lightcuts.integrators.registry import INTEGRATORS, CutIntegrator, check_count
+from lightcuts.integrators.shading import facing_normal, reflect
 from lightcuts.scene.textures import albedo_at
 
 #: Pixels a thread takes at a time.
@@ -56,8 +56,8 @@ def _render_pixel(cdata, width, cam, seed, spp, sx, sy, px, py,
     """All eye rays of pixel (px, py): returns (L_r, L_g, L_b, cut, shadow_rays, clamp_lost), cut
     and clamp_lost summed over the eye rays. An empty env_pixels (0, 0, 3) means no environment.
     cdata, width : the caster's data and packet width (lightcuts.accel.base.KernelCaster); buf : its
-    scratch. compensation : the eye-path continuations (lightcuts.render.continuation) averaged per
-    eye ray (0: none), whose rays count as shadow rays; stochastic : stochastic representatives (lightcuts.render.cut)."""
+    scratch. compensation : the eye-path continuations (lightcuts.integrators.continuation) averaged per
+    eye ray (0: none), whose rays count as shadow rays; stochastic : stochastic representatives (lightcuts.integrators.cut)."""
     o0, o1, o2 = cam[CAM_POSITION], cam[CAM_POSITION + 1], cam[CAM_POSITION + 2]
     a0 = 0.0
     a1 = 0.0
@@ -154,16 +154,16 @@ def _render_band(cdata, width, cam, seed, spp, sx, sy, x0, x1, y0, y1, face_norm
 
 
 @INTEGRATORS.register("lightcuts")
-@declare(lens=False, cut_unit="light nodes per eye ray", kernels="lightcuts.render.lightcut", converging=True,
+@declare(lens=False, cut_unit="light nodes per eye ray", kernels="lightcuts.integrators.lightcut", converging=True,
          reference=True, forest=True)
 class Lightcuts(CutIntegrator):
     """A lightcut per eye ray through every light tree (Walter et al. 2005).
 
     Its kernel is this module's. Settings as :class:`CutIntegrator`, plus compensation : add the light
     the VPLs lose to clamping and to glossy surfaces by a continuation of the eye path
-    (lightcuts.render.continuation; the VPLs must come from glossy particle paths), whose rays count as
+    (lightcuts.integrators.continuation; the VPLs must come from glossy particle paths), whose rays count as
     shadow rays; representatives : ``fixed`` (the trees') or ``stochastic`` (one light drawn per cut
-    node and eye ray, lightcuts.render.cut.stochastic_estimate); continuation_rays : with compensation,
+    node and eye ray, lightcuts.integrators.cut.stochastic_estimate); continuation_rays : with compensation,
     the continuations averaged per eye ray (1 to MAX_CONTINUATION_RAYS); all_lights : the brute-force
     reference instead (every light at every hit, one shadow ray each, no trees). A pinhole camera only
     (the plan refuses an aperture).
@@ -194,7 +194,7 @@ class Lightcuts(CutIntegrator):
                          clamp_min_distance=self.clamp_min_distance, visibility=self.visibility, all_lights=True)
 
     def band_kernel(self, f) -> Band:
-        """The lightcut kernel's call for the driver's frame ``f`` (lightcuts.render.driver)."""
+        """The lightcut kernel's call for the driver's frame ``f`` (lightcuts.integrators.driver)."""
         fo, reference = f.forest, self.brute_force
         head = (*f.caster, f.cam, f.seed, self.spp, f.sx, f.sy)
         tail = (*f.surfaces, fo.node_b, fo.node_bi, fo.roots, fo.light_f, fo.light_i, *f.env, float(self.eps),
@@ -211,7 +211,7 @@ def render_image(scene, caster, lights: dict, trees: dict, camera=None, spp: int
                  representatives: str = "fixed", continuation_rays: int = 1, forest=None) -> RenderResult:
     """The :class:`Lightcuts` integrator of these settings (with ``reference=True``, its reference:
     every light at every hit) rendering in one call; arguments as the integrator's constructor and
-    :meth:`~lightcuts.render.registry.Integrator.render`."""
+    :meth:`~lightcuts.integrators.registry.Integrator.render`."""
     integ = Lightcuts(spp=spp, eps=eps, max_cut=max_cut, clamp=clamp, clamp_min_distance=clamp_min_distance,
                       visibility=visibility, compensation=compensation, representatives=representatives,
                       continuation_rays=continuation_rays)
@@ -233,5 +233,5 @@ def render_reference(scene, caster, lights: dict, camera=None, spp: int = 1, cla
 
 
 def warm_kernels() -> None:
-    """Compile the band kernel into numba's cache (lightcuts.render.driver.warm)."""
+    """Compile the band kernel into numba's cache (lightcuts.integrators.driver.warm)."""
     warm(Lightcuts())
