@@ -22,11 +22,10 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-#: (config, gallery file, caption): the README's order.
-CONFIGS = (("cornell.yaml", "cornell.png", "cornell"), ("cornell-glossy.yaml", "cornell-glossy.png", "cornell-glossy"),
-           ("sun-env.yaml", "sun-env.png", "sun-env"), ("kitchen.yaml", "kitchen.png", "kitchen"),
-           ("kitchen-dof.yaml", "kitchen-dof.png", "kitchen-dof"), ("rooms.yaml", "rooms.png", "rooms"),
-           ("mesh-gallery.yaml", "mesh-gallery.png", "mesh-gallery"))
+#: (config, gallery file), in the README's order.
+CONFIGS = (("cornell.yaml", "cornell.png"), ("cornell-glossy.yaml", "cornell-glossy.png"),
+           ("sun-env.yaml", "sun-env.png"), ("kitchen.yaml", "kitchen.png"), ("kitchen-dof.yaml", "kitchen-dof.png"), ("rooms.yaml", "rooms.png"),
+           ("mesh-gallery.yaml", "mesh-gallery.png"))
 
 
 def save_small(image, path: Path, width: int | None = None) -> None:
@@ -37,11 +36,12 @@ def save_small(image, path: Path, width: int | None = None) -> None:
         image = image.resize((width, round(image.height * width / image.width)), Image.LANCZOS)
     image.convert("RGB").quantize(256, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.FLOYDSTEINBERG).save(
         path, optimize=True)
-    print(f"{path.relative_to(ROOT)}: {path.stat().st_size / 1024:.0f} KB", flush=True)
+    print(f"{path}: {path.stat().st_size / 1024:.0f} KB", flush=True)
 
 
-def screenshot(html: Path, out: Path, width: int) -> None:
-    """report.html in headless Chromium, the error view on, the top of the page."""
+def screenshot(html: Path, out: Path, width: int, profile: Path) -> None:
+    """report.html in headless Chromium (its profile in the folder ``profile``), the error view on,
+    the top of the page."""
     import io
 
     from PIL import Image
@@ -52,7 +52,7 @@ def screenshot(html: Path, out: Path, width: int) -> None:
     options.binary_location = "/usr/bin/chromium"
     for flag in ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
                  "--disable-background-networking", "--disable-component-update", "--disable-sync",
-                 "--window-size=1100,900", f"--user-data-dir={tempfile.mkdtemp()}"):
+                 "--window-size=1100,900", f"--user-data-dir={profile}"):
         options.add_argument(flag)
     driver = webdriver.Chrome(options=options, service=Service("/usr/bin/chromedriver"))
     try:
@@ -73,10 +73,7 @@ def screenshot(html: Path, out: Path, width: int) -> None:
 
 
 def main(argv=None) -> int:
-    from PIL import Image
-
     from lightcuts.cli import main as cli
-    from lightcuts.config import load_config
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--width", type=int, default=320, help="width of the render images (default 320)")
@@ -84,11 +81,21 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    work = Path(tempfile.mkdtemp(prefix="lightcuts-gallery-"))
-    for config, name, _ in CONFIGS:
+    with tempfile.TemporaryDirectory(prefix="lightcuts-gallery-") as work:
+        make(Path(work), out, args.width, cli)
+    return 0
+
+
+def make(work: Path, out: Path, width: int, cli) -> None:
+    """Render, compare and screenshot in ``work``; the small PNGs into ``out``."""
+    from PIL import Image
+
+    from lightcuts.config import load_config
+
+    for config, name in CONFIGS:
         cfg = load_config(ROOT / "configs" / config)
         w, h = cfg.camera.resolution or (512, 512)
-        size = f"camera.resolution=[{args.width},{round(h * args.width / w)}]"
+        size = f"camera.resolution=[{width},{round(h * width / w)}]"
         t0 = time.perf_counter()
         assert cli(["render", str(ROOT / "configs" / config), "--out", str(work / name), "--no-progress",
                     "--set", size]) == 0, config
@@ -97,8 +104,7 @@ def main(argv=None) -> int:
     assert cli(["compare", str(ROOT / "configs/cornell.yaml"), "--out", str(work / "compare"), "--no-progress",
                 "--set", "camera.resolution=[192,192]"]) == 0
     save_small(Image.open(work / "compare" / "cutsizes.png"), out / "compare-cutsizes.png", 960)
-    screenshot(work / "compare" / "report.html", out / "report-html.png", 800)
-    return 0
+    screenshot(work / "compare" / "report.html", out / "report-html.png", 800, work / "chromium")
 
 
 if __name__ == "__main__":
