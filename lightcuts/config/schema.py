@@ -166,6 +166,8 @@ class SceneConfig(Strict):
 
     builtin: str | None = None
     procedural: PluginSpec | None = None
+    # A Mitsuba 3 XML scene read through Mitsuba's parser (lightcuts.scene.mitsuba_xml).
+    mitsuba: str | None = None
     meshes: list[MeshEntry] = []
     # Optional material override of named built-in surfaces (e.g. floor, short_block, tall_block).
     materials: dict[str, Material] = {}
@@ -414,6 +416,8 @@ def set_key(data: dict, key: str, value, prefix: str = "") -> None:
 def check_files(cfg: RunConfig, source: str) -> None:
     """Every file the config names exists and is readable: checked before any work starts."""
     named = [(f"scene.meshes.{i}.file", m.file) for i, m in enumerate(cfg.scene.meshes)]
+    if cfg.scene.mitsuba is not None:
+        named.append(("scene.mitsuba", cfg.scene.mitsuba))
     if cfg.lights.environment is not None and cfg.lights.environment.file is not None:
         named.append(("lights.environment.file", cfg.lights.environment.file))
     for key, p in named:
@@ -432,10 +436,10 @@ def config_from_dict(data: dict, source: str = "<config>", base_dir: str | Path 
     except ValidationError as exc:
         raise LightcutsError(_format_error(source, exc, keys)) from None
     sc = cfg.scene
-    if sc.builtin is None and sc.procedural is None and not sc.meshes and not sc.emitters:
-        raise LightcutsError(f"{source}: scene: needs builtin, procedural, meshes or emitters")
-    if sc.builtin is not None and sc.procedural is not None:
-        raise LightcutsError(f"{source}: scene: give at most one of builtin or procedural")
+    if sc.builtin is None and sc.procedural is None and sc.mitsuba is None and not sc.meshes and not sc.emitters:
+        raise LightcutsError(f"{source}: scene: needs builtin, procedural, mitsuba, meshes or emitters")
+    if (sc.builtin is not None) + (sc.procedural is not None) + (sc.mitsuba is not None) > 1:
+        raise LightcutsError(f"{source}: scene: give at most one of builtin, procedural or mitsuba")
     env = cfg.lights.environment
     if env is not None and (env.file is None) == (env.procedural is None):
         raise LightcutsError(f"{source}: lights.environment: give exactly one of file or procedural")
