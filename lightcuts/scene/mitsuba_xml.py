@@ -37,7 +37,7 @@ from lightcuts.errors import LightcutsError
 from lightcuts.scene.files import regular_file
 from lightcuts.scene.materials import MAX_PBR_EXPONENT
 from lightcuts.scene.scene import Camera, Scene
-from lightcuts.scene.textures import TextureSet
+from lightcuts.scene.textures import TextureSet, srgb_to_linear
 
 #: Segments around a tessellated sphere, disk or cylinder (and half as many rings of a sphere).
 SEGMENTS = 64
@@ -97,21 +97,22 @@ def _dielectric_f0(eta: float) -> float:
 
 
 def map_bsdf(mi, bsdf, where: str) -> tuple[np.ndarray, np.ndarray, float, np.ndarray | None, str]:
-    """A Mitsuba BSDF -> (rho_d (3,), rho_s (3,), Phong n, albedo texture (H, W, 3) linear or None,
-    the plugin's name), by the mapping of the module docstring; LightcutsError naming ``where`` for a
+    """A Mitsuba BSDF -> (rho_d (3,), rho_s (3,), Phong n, albedo texture or None, the plugin's
+    name); the texture is ((H, W, 3) float32 linear RGB, its 3x3 ``to_uv`` transform), by the mapping of the module docstring; LightcutsError naming ``where`` for a
     BSDF it does not map."""
     cls, params = bsdf.class_name(), dict(mi.traverse(bsdf).items())
+    raw = re.search(r"raw = 1", str(bsdf)) is not None  # a bitmap's flag, in its printed form only
     if cls.startswith("TwoSided"):
         # Mitsuba 3 has no accessor for the wrapped BSDF: its printed form names the plugin, and
         # its parameters are the wrapper's under ``brdf_0.``.
         match = re.search(r"brdf\[0\] = (\w+)\[", str(bsdf))
         cls = match.group(1) if match else "TwoSided"
         params = {k[len("brdf_0."):]: v for k, v in params.items() if k.startswith("brdf_0.")}
-        return _map(mi, cls, params, where)[:4] + ("twosided",)
-    return _map(mi, cls, params, where)
+        return _map(mi, cls, params, raw, where)[:4] + ("twosided",)
+    return _map(mi, cls, params, raw, where)
 
 
-def _map(mi, cls: str, p: dict, where: str):
+def _map(mi, cls: str, p: dict, raw: bool, where: str):
     if cls not in MAPPED_BSDFS:
         raise LightcutsError(f"{where}: BSDF {cls!r} has no Lambert + Phong mapping (mapped: "
                              f"{', '.join(sorted(set(MAPPED_BSDFS.values())))})")
@@ -119,7 +120,7 @@ def _map(mi, cls: str, p: dict, where: str):
     zero = np.zeros(3)
     if name == "diffuse":
         if "reflectance.data" in p:
-            return np.ones(3), zero, 0.0, _texture(p["reflectance.data"]), name
+            return np.ones(3), zero, 0.0, _texture(p, "reflectance", raw), name
         return np.clip(_rgb(p, "reflectance.value", 0.5), 0, 1), zero, 0.0, None, name
     alpha = float(_value(p, "alpha.value", _value(p, "alpha", 0.0))[0]) if cls.startswith("Rough") else 0.0
     n = _phong_exponent(alpha)
@@ -131,7 +132,7 @@ def _map(mi, cls: str, p: dict, where: str):
         scale = (1.0 - f0) ** 2 / (eta ** 2 * (1.0 - fdr_int))
         texture = None
         if "diffuse_reflectance.data" in p:
-            texture, rho_d = _texture(p["diffuse_reflectance.data"]), np.full(3, scale)
+            texture, rho_d = _texture(p, "diffuse_reflectance", raw), np.full(3, scale)
         else:
             rho_d = _rgb(p, "diffuse_reflectance.value", 0.5) * scale
         return np.clip(rho_d, 0, 1), np.clip(f0 * rho_s_scale, 0, 1), n, texture, name
@@ -143,14 +144,21 @@ def _map(mi, cls: str, p: dict, where: str):
     return zero, np.clip(f0 * rho_s_scale, 0, 1), n, None, name
 
 
-def _texture(data) -> np.ndarray:
-    """A bitmap texture's data (H, W, C) as (H, W, 3) float32 linear RGB (grey broadcast)."""
+def _texture(p: dict, key: str, raw: bool) -> tuple[np.ndarray, np.ndarray]:
+    """A bitmap texture's (H, W, 3) float32 linear RGB (grey broadcast; 8-bit data decoded from
+    sRGB unless the bitmap is ``raw``) and its (3, 3) ``to_uv`` transform."""
+    data = p[f"{key}.data"]
     a = np.array(data, np.float32)
+    if np.array(data).dtype == np.uint8:
+        a = a / 255.0
+        if not raw:
+            a = srgb_to_linear(a).astype(np.float32)
     if a.ndim == 2:
         a = a[..., None]
     if a.shape[2] == 1:
         a = np.repeat(a, 3, axis=2)
-    return np.ascontiguousarray(a[..., :3])
+    to_uv = np.array(p[f"{key}.to_uv"].matrix, np.float64).reshape(3, 3) if f"{key}.to_uv" in p else np.eye(3)
+    return np.ascontiguousarray(a[..., :3]), to_uv
 
 
 def _tessellate(kind, m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -189,15 +197,14 @@ def _tessellate(kind, m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _shape_triangles(mi, shape, where: str):
-    """(vertices, faces, uv (F, 3, 2) in lightcuts' convention or None) of one Mitsuba shape."""
+    """(vertices, faces, uv (F, 3, 2) Mitsuba's texture coordinates or None) of one Mitsuba shape."""
     p = mi.traverse(shape)
     if "vertex_positions" in p:
         v = np.array(p["vertex_positions"], np.float64).reshape(-1, 3)
         f = np.array(p["faces"], np.int64).reshape(-1, 3)
         uv = None
         if "vertex_texcoords" in p and np.size(p["vertex_texcoords"]) == 2 * len(v):
-            t = np.array(p["vertex_texcoords"], np.float64).reshape(-1, 2)
-            uv = np.stack([t[:, 0], 1.0 - t[:, 1]], axis=1)[f]  # Mitsuba's v = 0 is the image's top row
+            uv = np.array(p["vertex_texcoords"], np.float64).reshape(-1, 2)[f]
         return v, f, uv
     kind = next((k for k in ("Sphere", "Disk", "Cylinder", "Rectangle") if shape.shape_type() == int(getattr(mi.ShapeType, k))),
                 shape.class_name())
@@ -206,6 +213,9 @@ def _shape_triangles(mi, shape, where: str):
                              "disk, cylinder are)")
     m = np.array(p["to_world"].matrix, np.float64).reshape(4, 4)
     v, f = _tessellate(kind, m)
+    if kind == "Rectangle":  # Mitsuba's uv: the local (x, y) from [-1, 1]^2 onto [0, 1]^2
+        local = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float64)
+        return v, f, local[f]
     return v, f, None
 
 
@@ -294,14 +304,18 @@ def load_mitsuba_xml(path, name: str = "scene", where: str = "scene.mitsuba") ->
         emission = np.zeros(3)
         if shape.emitter() is not None:
             ep = mi.traverse(shape.emitter())
-            emission = _texture(ep["radiance.data"]).reshape(-1, 3).mean(axis=0).astype(np.float64) \
+            raw = re.search(r"raw = 1", str(shape.emitter())) is not None
+            emission = _texture(ep, "radiance", raw)[0].reshape(-1, 3).mean(axis=0).astype(np.float64) \
                 if "radiance.data" in ep else _rgb(ep, "radiance.value", 0.0)
         tex_id = -1
         if texture is not None and uv is not None:
+            image, to_uv = texture
             tex_id = len(images)
-            images.append((texture, f"{Path(path).name}: {shape.id() or i}"))
+            images.append((image, f"{Path(path).name}: {shape.id() or i}"))
+            uv = uv @ to_uv[:2, :2].T + to_uv[:2, 2]
+            uv = np.stack([uv[..., 0], 1.0 - uv[..., 1]], axis=-1)  # Mitsuba's v = 0 is the image's top row
         elif texture is not None:
-            rho_d = rho_d * texture.reshape(-1, 3).mean(axis=0)  # no uv: the texture's mean
+            rho_d = rho_d * texture[0].reshape(-1, 3).mean(axis=0)  # no uv: the texture's mean
         parts.append((v, f, rho_d, rho_s, n, emission, tex_id, uv))
     if not parts:
         raise LightcutsError(f"{where}: {path}: no shapes")
