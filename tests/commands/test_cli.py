@@ -78,3 +78,15 @@ def test_compile_notice_on_a_cold_cache_only(tmp_path):
               "later runs load them from the cache")
     assert runs[0].returncode == 0 and runs[0].stderr.strip().splitlines() == [notice], runs[0].stderr
     assert runs[1].returncode == 0 and runs[1].stderr.strip() == "", runs[1].stderr
+
+
+def test_help_lists_every_command_in_plain_text(capsys):
+    from lightcuts.cli import main
+    from lightcuts.commands import COMMANDS
+
+    with pytest.raises(SystemExit) as e:
+        main(["--help"])
+    assert e.value.code == 0
+    out = capsys.readouterr().out
+    description = out.split("positional arguments")[0].split("\n\n", 1)[1]
+    assert all(name in description for name in COMMANDS) and "``" not in out
