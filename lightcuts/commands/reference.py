@@ -161,6 +161,13 @@ def _lightcuts_image(args, cfg, plan, scene, envmap, warmup: list) -> tuple[np.n
                           "seconds": result.seconds, "cut_size_mean": float(result.cut_size.mean())}
 
 
+def _xml_mapping(cfg) -> dict:
+    """The ``scene.mitsuba`` file and how each of its BSDFs is mapped (what differs from Mitsuba)."""
+    from lightcuts.scene.mitsuba_xml import bsdf_mapping
+
+    return {"file": cfg.scene.mitsuba, "bsdfs": bsdf_mapping(cfg.resolve(cfg.scene.mitsuba))}
+
+
 def _run(args, cfg, plan, out_dir: Path, warmup: list, tracer) -> dict:
     from lightcuts import __version__
     from lightcuts.io import output_set, save_json
@@ -198,6 +205,7 @@ def _run(args, cfg, plan, out_dir: Path, warmup: list, tracer) -> dict:
         "comparison": comparison,
         "path_tracer": described,
         **({"mitsuba": described} if tracer.name == "mitsuba" else {}),
+        **({"mitsuba_xml": _xml_mapping(cfg)} if cfg.scene.mitsuba is not None else {}),
         "lightcuts": {**lc, "direct_only": args.integrator == "direct"},
         "phong_approximated": tracer.name == "mitsuba" and bool((scene.specular.max(axis=1) > 0).any()),
     }

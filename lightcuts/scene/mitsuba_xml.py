@@ -289,6 +289,34 @@ def _sun(mi, mi_scene, where):
     return suns[0] if suns else None
 
 
+#: How each mapped BSDF's lightcuts material relates to Mitsuba's (for reports).
+MAPPING_NOTES = {
+    "diffuse": "exact (Lambert)",
+    "plastic": "Lambert + Phong stand-in: albedo = the diffuse lobe at normal incidence, a Phong mirror of F0",
+    "roughplastic": "Lambert + Phong stand-in: albedo = the diffuse lobe at normal incidence, Phong lobe "
+                    "n = 2 / alpha^2 - 2 of F0",
+    "conductor": "Phong stand-in: a mirror of the Fresnel reflectance at normal incidence",
+    "roughconductor": "Phong stand-in: lobe n = 2 / alpha^2 - 2 of the Fresnel reflectance at normal incidence",
+}
+
+
+def bsdf_mapping(path, where: str = "scene.mitsuba") -> dict:
+    """Per Mitsuba BSDF plugin of the file's shapes (as Mitsuba holds them: it merges meshes that share
+    a BSDF): ``{"shapes": count, "mapping": note}``
+    (``twosided`` counted under the BSDF it wraps), for reports."""
+    mi, mi_scene = load_xml(path, where)
+    out: dict = {}
+    for i, shape in enumerate(mi_scene.shapes()):
+        bsdf = shape.bsdf()
+        name = map_bsdf(mi, bsdf, f"{where}: shape {shape.id() or i}")[4] if bsdf is not None else "diffuse"
+        if name == "twosided":
+            match = re.search(r"brdf\[0\] = (\w+)\[", str(bsdf))
+            name = MAPPED_BSDFS.get(match.group(1), name) if match else name
+        entry = out.setdefault(name, {"shapes": 0, "mapping": MAPPING_NOTES.get(name, "")})
+        entry["shapes"] += 1
+    return out
+
+
 def load_mitsuba_xml(path, name: str = "scene", where: str = "scene.mitsuba") -> tuple[Scene, tuple | None]:
     """(the Scene of the XML file with its sensor's camera, its sun or None); see the module
     docstring. LightcutsError ``<where>: ...`` for a file Mitsuba rejects or a feature not read."""
