@@ -38,14 +38,14 @@ def load_environment(cfg) -> EnvironmentMap | None:
 
 
 def lights_from_config(cfg, scene, caster=None, envmap: EnvironmentMap | None = None) -> dict[str, LightSet]:
-    """Light sets keyed by type (``oriented``, ``directional``), empty types omitted.
+    """Light sets keyed by type (``omni``, ``oriented``, ``directional``), empty types omitted.
 
     cfg : RunConfig; scene : Scene; caster : RayCaster for particle tracing (required when indirect
     lights are asked for); envmap : the config's environment map (:func:`load_environment`, loaded
     once per run by the caller), None without one.
 
-    ``oriented`` = direct lights then indirect VPLs; ``directional`` = the sun then the environment
-    samples. Each set's ``meta``: scene name, scene bbox min/max and diagonal, the run seed, and
+    ``omni`` = the point emitters of a ``scene.mitsuba`` file; ``oriented`` = direct lights then
+    indirect VPLs; ``directional`` = the sun then the environment samples. Each set's ``meta``: scene name, scene bbox min/max and diagonal, the run seed, and
     ``count_direct``, ``count_indirect``, ``count_sun``, ``count_environment`` (0 when absent) plus
     ``indirect_paths`` (the particle paths that normalise the VPLs).
 
@@ -87,11 +87,15 @@ def lights_from_config(cfg, scene, caster=None, envmap: EnvironmentMap | None = 
         e = environment_lights(envmap, lc.environment.count, sub_seed(cfg.seed, "environment"))
         directional.append(e)
         counts["count_environment"] = len(e)
+    from lightcuts.scene.mitsuba_xml import point_lights
+
+    omni = [ls for ls in [point_lights(cfg)] if ls is not None]
+    counts["count_point"] = len(omni[0]) if omni else 0
     lo, hi = scene.bounds
     meta = {"scene": scene.name, "bbox_min": lo, "bbox_max": hi, "diagonal": scene.diagonal, "seed": cfg.seed,
             **counts}
     out = {}
-    for typ, sets in (("oriented", oriented), ("directional", directional)):
+    for typ, sets in (("omni", omni), ("oriented", oriented), ("directional", directional)):
         sets = [s for s in sets if len(s)]
         if sets:
             ls = LightSet.concatenate(sets)

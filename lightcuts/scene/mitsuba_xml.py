@@ -21,8 +21,9 @@ takes from it (docs/math.md's Lambert + Phong material; ``MAPPED_BSDFS`` lists t
   bitmap (a documented stand-in: lightcuts' emitters have one radiance per triangle).
 * The sensor (``perspective``): position, look-at and up from its ``to_world``, the vertical fov from
   Mitsuba's horizontal ``x_fov`` (whatever ``fov_axis`` the file gave) and the film's size.
-* Other emitters: ``directional`` -> ``lights.sun`` (:func:`xml_sun`); point, spot, constant and
-  envmap emitters are an error naming the emitter (not read).
+* Other emitters: ``directional`` -> ``lights.sun`` (:func:`xml_settings`); ``point`` -> an ``omni``
+  light of its ``intensity`` (:func:`point_lights`; direct light only); spot, constant and envmap
+  emitters are an error naming the emitter (not read).
 """
 
 from __future__ import annotations
@@ -239,9 +240,10 @@ def xml_camera(mi, mi_scene, where: str) -> Camera | None:
 _SUMMARIES: dict = {}
 
 
-def xml_summary(path, where: str = "scene.mitsuba") -> tuple[tuple | None, tuple[int, int] | None]:
-    """(the file's sun (see :func:`load_mitsuba_xml`) or None, its film's (width, height) or None),
-    read once per file version (path, size, modification time) in a process."""
+def xml_summary(path, where: str = "scene.mitsuba") -> tuple[tuple | None, tuple[int, int] | None, np.ndarray]:
+    """(the file's sun (see :func:`load_mitsuba_xml`) or None, its film's (width, height) or None, its
+    point lights (P, 2, 3) position and intensity), read once per file version (path, size,
+    modification time) in a process."""
     p = regular_file(path, f"{where}: {path}")
     st = p.stat()
     key = (str(p.resolve()), st.st_size, st.st_mtime_ns)
@@ -250,7 +252,8 @@ def xml_summary(path, where: str = "scene.mitsuba") -> tuple[tuple | None, tuple
         sensors = mi_scene.sensors()
         size = tuple(int(x) for x in sensors[0].film().size()) if sensors else None
         _SUMMARIES.clear()
-        _SUMMARIES[key] = (_sun(mi, mi_scene, where), size)
+        sun, points = _emitters(mi, mi_scene, where)
+        _SUMMARIES[key] = (sun, size, points)
     return _SUMMARIES[key]
 
 
@@ -260,7 +263,7 @@ def xml_settings(cfg):
     ``lights.sun: ...`` when both the config and the file give a sun."""
     from lightcuts.config.schema import Sun
 
-    sun, size = xml_summary(cfg.resolve(cfg.scene.mitsuba))
+    sun, size, _ = xml_summary(cfg.resolve(cfg.scene.mitsuba))
     lights, camera = cfg.lights, cfg.camera
     if sun is not None:
         if lights.sun is not None:
@@ -272,21 +275,38 @@ def xml_settings(cfg):
     return cfg.model_copy(update={"lights": lights, "camera": camera})
 
 
-def _sun(mi, mi_scene, where):
-    suns = []
+def _emitters(mi, mi_scene, where) -> tuple[tuple | None, np.ndarray]:
+    """(the sun or None, the point lights (P, 2, 3): position and intensity W/sr per light)."""
+    suns, points = [], []
     for e in mi_scene.emitters():
         cls = e.class_name()
         if cls == "AreaLight":
             continue
-        if cls != "DirectionalEmitter":
-            raise LightcutsError(f"{where}: emitter {cls!r} is not read (area and directional emitters are)")
         p = mi.traverse(e)
+        if cls == "PointLight":
+            points.append((np.array(p["position"], np.float64).reshape(3), _rgb(p, "intensity.value", 1.0)))
+            continue
+        if cls != "DirectionalEmitter":
+            raise LightcutsError(f"{where}: emitter {cls!r} is not read (area, point and directional emitters are)")
         m = np.array(p["to_world"].matrix, np.float64).reshape(4, 4)
         d = m[:3, 2] / np.linalg.norm(m[:3, 2])
         suns.append((-d, _rgb(p, "irradiance.value", 1.0)))
     if len(suns) > 1:
         raise LightcutsError(f"{where}: {len(suns)} directional emitters; lightcuts has one sun")
-    return suns[0] if suns else None
+    return (suns[0] if suns else None), np.array(points, np.float64).reshape(-1, 2, 3)
+
+
+def point_lights(cfg):
+    """The ``omni`` LightSet of the config's ``scene.mitsuba`` point emitters (direct light only:
+    lightcuts' indirect VPLs are traced from emitting triangles), or None without any."""
+    from lightcuts.lights.lightset import LightSet
+
+    if cfg.scene.mitsuba is None:
+        return None
+    points = xml_summary(cfg.resolve(cfg.scene.mitsuba))[2]
+    if not len(points):
+        return None
+    return LightSet(points[:, 0], np.zeros((len(points), 3)), points[:, 1], "omni")
 
 
 #: How each mapped BSDF's lightcuts material relates to Mitsuba's (for reports).
@@ -321,7 +341,7 @@ def load_mitsuba_xml(path, name: str = "scene", where: str = "scene.mitsuba") ->
     """(the Scene of the XML file with its sensor's camera, its sun or None); see the module
     docstring. LightcutsError ``<where>: ...`` for a file Mitsuba rejects or a feature not read."""
     mi, mi_scene = load_xml(path, where)
-    sun = _sun(mi, mi_scene, where)
+    sun = _emitters(mi, mi_scene, where)[0]
     parts, images = [], []
     for i, shape in enumerate(mi_scene.shapes()):
         label = f"{where}: shape {shape.id() or i}"

@@ -116,7 +116,9 @@ def test_directional_emitter_is_the_sun(tmp_path):
 
 @pytest.mark.parametrize("body, message", [
     (_rect('<bsdf type="dielectric"/>'), "BSDF 'SmoothDielectric' has no Lambert + Phong mapping"),
-    (_rect("") + '<emitter type="point"><point name="position" value="0,1,0"/></emitter>', "emitter 'PointLight'"),
+    (_rect("") + '<emitter type="spot"><transform name="to_world"><lookat origin="0,1,0" target="0,0,0"/>'
+     '</transform></emitter>', "emitter 'SpotLight' is not read"),
+    (_rect("") + '<emitter type="constant"/>', "emitter 'ConstantBackgroundEmitter' is not read"),
     ("<shape type='rectangle'>", "Mitsuba cannot load it"),
 ])
 def test_what_is_not_read_is_one_line(tmp_path, body, message):
@@ -209,3 +211,26 @@ def _barycentric(t, xy):
 
 def _inside(t, xy):
     return bool((_barycentric(t, xy) >= -1e-9).all())
+
+
+def test_point_emitter_is_an_omni_light_matching_mitsuba(tmp_path):
+    """A point emitter becomes one omni light of its intensity: lightcuts' direct light (16 samples
+    per pixel, clamping off) against Mitsuba rendering the file."""
+    from lightcuts.cli import main
+
+    body = ('<bsdf type="diffuse" id="white"><rgb name="reflectance" value="0.7,0.7,0.7"/></bsdf>'
+            + _rect('<ref id="white"/>', '<rotate x="1" angle="-90"/>') + _rect('<ref id="white"/>', '<translate value="0,1,-1"/>')
+            + '<shape type="cube"><transform name="to_world"><scale value="0.3"/><translate value="0.3,0.3,0"/>'
+              '</transform><ref id="white"/></shape>'
+            '<emitter type="point"><point name="position" value="-0.3,1.5,0.4"/><rgb name="intensity" value="3,2,1"/>'
+            '</emitter>')
+    _xml(tmp_path, body, name="pt.xml", fov=40, w=40, h=32)
+    cfg = tmp_path / "pt.yaml"
+    cfg.write_text("name: pt\nscene: {mitsuba: pt.xml}\ncamera: {look_at: [0, 0.6, 0]}\n"
+                   "render: {spp: 16, clamp: {enabled: false}}\n")
+    assert main(["reference", str(cfg), "--integrator", "direct", "--spp", "256", "--out", str(tmp_path / "r"),
+                 "--no-progress"]) == 0
+    report = json.loads((tmp_path / "r" / "report.json").read_text())
+    assert report["lightcuts"]["lights"] == {"omni": 1}
+    assert report["comparison"]["energy_ratio"] == pytest.approx(1.0, abs=0.01)
+    assert report["comparison"]["block8"]["median"] < 0.01
