@@ -37,6 +37,19 @@ def load_environment(cfg) -> EnvironmentMap | None:
                           scale=env.scale)
 
 
+def point_lights(cfg) -> LightSet | None:
+    """The ``omni`` LightSet of the config's ``scene.mitsuba`` point emitters (direct light only:
+    lightcuts' indirect VPLs are traced from emitting triangles), or None without any."""
+    if cfg.scene.mitsuba is None:
+        return None
+    from lightcuts.scene.mitsuba_xml import xml_summary
+
+    points = xml_summary(cfg.resolve(cfg.scene.mitsuba))[2]
+    if not len(points):
+        return None
+    return LightSet(points[:, 0], np.zeros((len(points), 3)), points[:, 1], "omni")
+
+
 def lights_from_config(cfg, scene, caster=None, envmap: EnvironmentMap | None = None) -> dict[str, LightSet]:
     """Light sets keyed by type (``omni``, ``oriented``, ``directional``), empty types omitted.
 
@@ -87,8 +100,6 @@ def lights_from_config(cfg, scene, caster=None, envmap: EnvironmentMap | None = 
         e = environment_lights(envmap, lc.environment.count, sub_seed(cfg.seed, "environment"))
         directional.append(e)
         counts["count_environment"] = len(e)
-    from lightcuts.scene.mitsuba_xml import point_lights
-
     omni = [ls for ls in [point_lights(cfg)] if ls is not None]
     counts["count_point"] = len(omni[0]) if omni else 0
     lo, hi = scene.bounds

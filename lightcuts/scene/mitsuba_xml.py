@@ -22,7 +22,7 @@ takes from it (docs/math.md's Lambert + Phong material; ``MAPPED_BSDFS`` lists t
 * The sensor (``perspective``): position, look-at and up from its ``to_world``, the vertical fov from
   Mitsuba's horizontal ``x_fov`` (whatever ``fov_axis`` the file gave) and the film's size.
 * Other emitters: ``directional`` -> ``lights.sun`` (:func:`xml_settings`); ``point`` -> an ``omni``
-  light of its ``intensity`` (:func:`point_lights`; direct light only); spot, constant and envmap
+  light of its ``intensity`` (``lightcuts.lights.generate.point_lights``; direct light only); spot, constant and envmap
   emitters are an error naming the emitter (not read).
 """
 
@@ -294,19 +294,6 @@ def _emitters(mi, mi_scene, where) -> tuple[tuple | None, np.ndarray]:
     if len(suns) > 1:
         raise LightcutsError(f"{where}: {len(suns)} directional emitters; lightcuts has one sun")
     return (suns[0] if suns else None), np.array(points, np.float64).reshape(-1, 2, 3)
-
-
-def point_lights(cfg):
-    """The ``omni`` LightSet of the config's ``scene.mitsuba`` point emitters (direct light only:
-    lightcuts' indirect VPLs are traced from emitting triangles), or None without any."""
-    from lightcuts.lights.lightset import LightSet
-
-    if cfg.scene.mitsuba is None:
-        return None
-    points = xml_summary(cfg.resolve(cfg.scene.mitsuba))[2]
-    if not len(points):
-        return None
-    return LightSet(points[:, 0], np.zeros((len(points), 3)), points[:, 1], "omni")
 
 
 #: How each mapped BSDF's lightcuts material relates to Mitsuba's (for reports).
