@@ -78,7 +78,7 @@ def run_reference(args) -> dict:
     """Run the command as the CLI does; returns the report dict (also written to report.json)."""
     from lightcuts.api.convergence import PathTracer
     from lightcuts.commands.plan import plan_run
-    from lightcuts.io import check_output_dir
+    from lightcuts.io import check_output_dir, run_dir
     from lightcuts.limits import MAX_BOUNCES, MAX_PASSES, MAX_REFERENCE_SPP
 
     overrides = list(args.overrides) + (["lights.indirect.count=0"] if args.integrator == "direct" else [])
@@ -103,7 +103,7 @@ def run_reference(args) -> dict:
         raise LightcutsError("--max-depth: goes with --renderer mitsuba (lightcuts' path tracer has every bounce)")
     tracer = PathTracer(args.renderer)
     tracer.check(cfg, args.integrator)
-    out_dir = check_output_dir(Path(args.out) if args.out else Path("renders") / cfg.name / "reference",
+    out_dir = check_output_dir(Path(args.out) if args.out else run_dir(cfg.name, args.overrides) / "reference",
                                "--out" if args.out else "name")
     try:
         return _study(args, cfg, plan, overrides, out_dir, tracer)

@@ -90,3 +90,24 @@ def test_help_lists_every_command_in_plain_text(capsys):
     out = capsys.readouterr().out
     description = out.split("positional arguments")[0].split("\n\n", 1)[1]
     assert all(name in description for name in COMMANDS) and "``" not in out
+
+
+def test_a_render_with_overrides_keeps_the_configs_own_run(tmp_path, monkeypatch):
+    """``--set`` runs go to renders/<name>-set-<hash>/: the config's renders/<name>/ stays, the
+    same overrides reuse their folder and other overrides get another."""
+    from lightcuts.cli import main
+    from lightcuts.io import run_dir
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "run.yaml").write_text("name: r\nscene: {builtin: cornell}\ncamera: {resolution: [8, 8]}\n"
+                                       "lights: {direct: {count: 16}}\n")
+    assert main(["render", "run.yaml", "--no-progress"]) == 0
+    own = (tmp_path / "renders" / "r" / "image.exr").read_bytes()
+    small = ["--set", "camera.resolution=[4,4]"]
+    assert main(["render", "run.yaml", "--no-progress", *small]) == 0
+    assert (tmp_path / "renders" / "r" / "image.exr").read_bytes() == own
+    folder = tmp_path / run_dir("r", ["camera.resolution=[4,4]"])
+    assert folder.parent == tmp_path / "renders" and folder.name.startswith("r-set-")
+    assert (folder / "image.exr").is_file()
+    assert run_dir("r", ["camera.resolution=[4,4]"]) != run_dir("r", ["camera.resolution=[5,5]"])
+    assert sorted(p.name for p in (tmp_path / "renders").iterdir()) == ["r", folder.name]
