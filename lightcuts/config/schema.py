@@ -408,8 +408,8 @@ def _format_error(source: str, exc: ValidationError, keys=()) -> str:
     """One line for the first error; an unknown key that an override made (``keys``: the dotted keys
     set, which make their sections on the way, each a text or (key, the option that set it or None))
     is named in full, as the override gave it, and the error names the option (``--set``) rather
-    than the file. An unknown key suggests the nearest known one
-    of its section; a list of the wrong type gives the expected form and an example."""
+    than the file. An unknown key suggests the nearest known one of its section; a list of the
+    wrong type gives the expected form and an example."""
     e = exc.errors()[0]
     parts = [str(p) for p in e["loc"] if not (isinstance(p, str) and p.startswith("function-"))]
     loc = ".".join(parts)
@@ -429,7 +429,8 @@ def _format_error(source: str, exc: ValidationError, keys=()) -> str:
     elif e["type"] == "list_type":
         msg += _expected_form(_field_at(parts)[1])
     more = f" (and {len(exc.errors()) - 1} more)" if len(exc.errors()) > 1 else ""
-    setter = next((label for k, label in given if label and loc == k or loc.startswith(k + ".") or k.startswith(loc + ".")), None)
+    setter = next((label for k, label in given
+                   if label and (loc == k or loc.startswith(k + ".") or k.startswith(loc + "."))), None)
     if setter is not None:  # --set gave it, not the file (the API's values keep the file's name)
         return f"{setter} {loc}: {msg}{more}"
     return f"{source}: {loc or '<top>'}: {msg}{more}"

@@ -58,8 +58,9 @@ def lights_from_config(cfg, scene, caster=None, envmap: EnvironmentMap | None = 
     once per run by the caller), None without one.
 
     ``omni`` = the point emitters of a ``scene.mitsuba`` file; ``oriented`` = direct lights then
-    indirect VPLs; ``directional`` = the sun then the environment samples. Each set's ``meta``: scene name, scene bbox min/max and diagonal, the run seed, and
-    ``count_direct``, ``count_indirect``, ``count_sun``, ``count_environment`` (0 when absent) plus
+    indirect VPLs; ``directional`` = the sun then the environment samples. Each set's ``meta``: scene
+    name, scene bbox min/max and diagonal, the run seed, and ``count_direct``, ``count_indirect``,
+    ``count_sun``, ``count_environment``, ``count_point`` (0 when absent) plus
     ``indirect_paths`` (the particle paths that normalise the VPLs).
 
     LightcutsError: emission the scene may not have (:meth:`Scene.check_emission`), an indirect

@@ -90,9 +90,9 @@ def scene_from_config(cfg: RunConfig, scene_type: Resolved | None = None) -> Sce
 
     scene_type : the plan's resolved scene type (else resolved here, see
         :func:`~lightcuts.scene.registry.resolve_scene`)
-    Triangle order: the ``scene.mitsuba`` file's or the scene type's first, then each of ``cfg.scene.meshes`` in order (a type with
-    the ``exhibits`` trait, the gallery, takes them: its room, then the meshes on their plinths),
-    then the area lights of ``cfg.scene.emitters`` (lightcuts.scene.emitters). Mesh paths are
+    Triangle order: the ``scene.mitsuba`` file's or the scene type's first, then each of
+    ``cfg.scene.meshes`` in order (a type with the ``exhibits`` trait, the gallery, takes them: its
+    room, then the meshes on their plinths), then the area lights of ``cfg.scene.emitters`` (lightcuts.scene.emitters). Mesh paths are
     resolved with ``cfg.resolve``; errors name ``scene.meshes.<i>`` / ``scene.emitters.<i>``. The
     meshes' textures share one texel budget (lightcuts.limits.MAX_SCENE_TEXELS); the emission of
     each part, then of the whole scene, is checked against the light limits
@@ -112,7 +112,7 @@ def scene_from_config(cfg: RunConfig, scene_type: Resolved | None = None) -> Sce
     if sc.mitsuba is not None:
         from lightcuts.scene.mitsuba_xml import load_mitsuba_xml
 
-        parts.append(load_mitsuba_xml(cfg.resolve(sc.mitsuba), name=cfg.name)[0])
+        parts.append(load_mitsuba_xml(cfg.resolve(sc.mitsuba), name=cfg.name, budget=budget)[0])
         parts[0].check_emission(f"scene.mitsuba: {sc.mitsuba}")
     if scene_type is not None:
         if scene_type.trait("exhibits"):

@@ -22,8 +22,11 @@ takes from it (docs/math.md's Lambert + Phong material; ``MAPPED_BSDFS`` lists t
 * The sensor (``perspective``): position, look-at and up from its ``to_world``, the vertical fov from
   Mitsuba's horizontal ``x_fov`` (whatever ``fov_axis`` the file gave) and the film's size.
 * Other emitters: ``directional`` -> ``lights.sun`` (:func:`xml_settings`); ``point`` -> an ``omni``
-  light of its ``intensity`` (``lightcuts.lights.generate.point_lights``; direct light only); spot, constant and envmap
-  emitters are an error naming the emitter (not read).
+  light of its ``intensity`` (``lightcuts.lights.generate.point_lights``; direct light only); spot,
+  constant and envmap emitters are an error naming the emitter (not read).
+
+Mitsuba is imported here itself (:func:`mitsuba_module`), not through ``lightcuts.mitsuba``, a later
+layer.
 """
 
 from __future__ import annotations
@@ -38,7 +41,7 @@ from lightcuts.errors import LightcutsError
 from lightcuts.scene.files import regular_file
 from lightcuts.scene.materials import MAX_PBR_EXPONENT
 from lightcuts.scene.scene import Camera, Scene
-from lightcuts.scene.textures import TextureSet, srgb_to_linear
+from lightcuts.scene.textures import TexelBudget, TextureSet, srgb_to_linear
 
 #: Segments around a tessellated sphere, disk or cylinder (and half as many rings of a sphere).
 SEGMENTS = 64
@@ -99,8 +102,8 @@ def _dielectric_f0(eta: float) -> float:
 
 def map_bsdf(mi, bsdf, where: str) -> tuple[np.ndarray, np.ndarray, float, np.ndarray | None, str]:
     """A Mitsuba BSDF -> (rho_d (3,), rho_s (3,), Phong n, albedo texture or None, the plugin's
-    name); the texture is ((H, W, 3) float32 linear RGB, its 3x3 ``to_uv`` transform), by the mapping of the module docstring; LightcutsError naming ``where`` for a
-    BSDF it does not map."""
+    name) by the mapping of the module docstring; the texture is ((H, W, 3) float32 linear RGB,
+    its (3, 3) ``to_uv`` transform). LightcutsError naming ``where`` for a BSDF it does not map."""
     cls, params = bsdf.class_name(), dict(mi.traverse(bsdf).items())
     raw = re.search(r"raw = 1", str(bsdf)) is not None  # a bitmap's flag, in its printed form only
     if cls.startswith("TwoSided"):
@@ -163,9 +166,9 @@ def _texture(p: dict, key: str, raw: bool) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _tessellate(kind, m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(vertices (V, 3) world, faces (F, 3)) of Mitsuba's unit ``Rectangle``, ``Sphere``, ``Disk`` or ``Cylinder``
-    through the 4x4 ``to_world`` m; faces wound so their normals point outwards (sphere, cylinder)
-    or along local +z (disk), as Mitsuba's own normals."""
+    """(vertices (V, 3) world, faces (F, 3)) of Mitsuba's unit ``Rectangle``, ``Sphere``, ``Disk``
+    or ``Cylinder`` through the 4x4 ``to_world`` m; faces wound so their normals point outwards
+    (sphere, cylinder) or along local +z (rectangle, disk), as Mitsuba's own normals."""
     s = SEGMENTS
     phi = 2 * np.pi * np.arange(s) / s
     ring = np.stack([np.cos(phi), np.sin(phi)], axis=1)
@@ -207,9 +210,9 @@ def _shape_triangles(mi, shape, where: str):
         if "vertex_texcoords" in p and np.size(p["vertex_texcoords"]) == 2 * len(v):
             uv = np.array(p["vertex_texcoords"], np.float64).reshape(-1, 2)[f]
         return v, f, uv
-    kind = next((k for k in ("Sphere", "Disk", "Cylinder", "Rectangle") if shape.shape_type() == int(getattr(mi.ShapeType, k))),
-                shape.class_name())
-    if kind not in ("Sphere", "Disk", "Cylinder", "Rectangle"):
+    analytic = ("Sphere", "Disk", "Cylinder", "Rectangle")
+    kind = next((k for k in analytic if shape.shape_type() == int(getattr(mi.ShapeType, k))), shape.class_name())
+    if kind not in analytic:
         raise LightcutsError(f"{where}: shape type {kind!r} is not read (meshes, rectangle, cube, sphere, "
                              "disk, cylinder are)")
     m = np.array(p["to_world"].matrix, np.float64).reshape(4, 4)
@@ -240,7 +243,7 @@ def xml_camera(mi, mi_scene, where: str) -> Camera | None:
 _SUMMARIES: dict = {}
 
 
-def xml_summary(path, where: str = "scene.mitsuba") -> tuple[tuple | None, tuple[int, int] | None, np.ndarray]:
+def xml_summary(path, where: str = "scene.mitsuba") -> tuple:
     """(the file's sun (see :func:`load_mitsuba_xml`) or None, its film's (width, height) or None, its
     point lights (P, 2, 3) position and intensity), read once per file version (path, size,
     modification time) in a process."""
@@ -308,9 +311,9 @@ MAPPING_NOTES = {
 
 
 def bsdf_mapping(path, where: str = "scene.mitsuba") -> dict:
-    """Per Mitsuba BSDF plugin of the file's shapes (as Mitsuba holds them: it merges meshes that share
-    a BSDF): ``{"shapes": count, "mapping": note}``
-    (``twosided`` counted under the BSDF it wraps), for reports."""
+    """Per Mitsuba BSDF plugin of the file's shapes (as Mitsuba holds them: it merges meshes that
+    share a BSDF): ``{"shapes": count, "mapping": note}`` (``twosided`` counted under the BSDF it
+    wraps), for reports."""
     mi, mi_scene = load_xml(path, where)
     out: dict = {}
     for i, shape in enumerate(mi_scene.shapes()):
@@ -324,9 +327,13 @@ def bsdf_mapping(path, where: str = "scene.mitsuba") -> dict:
     return out
 
 
-def load_mitsuba_xml(path, name: str = "scene", where: str = "scene.mitsuba") -> tuple[Scene, tuple | None]:
+def load_mitsuba_xml(path, name: str = "scene", where: str = "scene.mitsuba",
+                     budget: TexelBudget | None = None) -> tuple[Scene, tuple | None]:
     """(the Scene of the XML file with its sensor's camera, its sun or None); see the module
-    docstring. LightcutsError ``<where>: ...`` for a file Mitsuba rejects or a feature not read."""
+    docstring. LightcutsError ``<where>: ...`` for a file Mitsuba rejects or a feature not read.
+    ``budget``: the scene's texel budget (lightcuts.limits.MAX_SCENE_TEXELS), which the file's
+    textures take from."""
+    budget = TexelBudget() if budget is None else budget
     mi, mi_scene = load_xml(path, where)
     sun = _emitters(mi, mi_scene, where)[0]
     parts, images = [], []
@@ -345,6 +352,7 @@ def load_mitsuba_xml(path, name: str = "scene", where: str = "scene.mitsuba") ->
         tex_id = -1
         if texture is not None and uv is not None:
             image, to_uv = texture
+            budget.take(image.shape[0] * image.shape[1], label)
             tex_id = len(images)
             images.append((image, f"{Path(path).name}: {shape.id() or i}"))
             uv = uv @ to_uv[:2, :2].T + to_uv[:2, 2]
@@ -361,7 +369,8 @@ def load_mitsuba_xml(path, name: str = "scene", where: str = "scene.mitsuba") ->
     tex = {}
     if images:
         tex = dict(texture=np.concatenate([np.full(c, p[6], np.int32) for p, c in zip(parts, counts)]),
-                   uv=np.concatenate([p[7] if p[7] is not None else np.zeros((c, 3, 2)) for p, c in zip(parts, counts)]),
+                   uv=np.concatenate([p[7] if p[7] is not None else np.zeros((c, 3, 2))
+                                      for p, c in zip(parts, counts)]),
                    textures=TextureSet.of([im for im, _ in images], [nm for _, nm in images]))
     scene = Scene(np.concatenate([p[0] for p in parts]),
                   np.concatenate([p[1] + o for p, o in zip(parts, offsets)]),

@@ -144,7 +144,8 @@ BOX = """<bsdf type="diffuse" id="white"><rgb name="reflectance" value="0.7,0.7,
 <shape type="cube"><transform name="to_world"><scale value="0.3"/><rotate y="1" angle="20"/>
   <translate value="0.3,0.3,0"/></transform><ref id="white"/></shape>
 <shape type="rectangle"><transform name="to_world"><scale value="0.25"/><rotate x="1" angle="90"/>
-  <translate value="0,1.9,0"/></transform><emitter type="area"><rgb name="radiance" value="10,10,10"/></emitter></shape>"""
+  <translate value="0,1.9,0"/></transform>
+  <emitter type="area"><rgb name="radiance" value="10,10,10"/></emitter></shape>"""
 
 
 def test_diffuse_scene_matches_mitsuba_rendering_the_file(tmp_path, monkeypatch):
@@ -219,7 +220,8 @@ def test_point_emitter_is_an_omni_light_matching_mitsuba(tmp_path):
     from lightcuts.cli import main
 
     body = ('<bsdf type="diffuse" id="white"><rgb name="reflectance" value="0.7,0.7,0.7"/></bsdf>'
-            + _rect('<ref id="white"/>', '<rotate x="1" angle="-90"/>') + _rect('<ref id="white"/>', '<translate value="0,1,-1"/>')
+            + _rect('<ref id="white"/>', '<rotate x="1" angle="-90"/>')
+            + _rect('<ref id="white"/>', '<translate value="0,1,-1"/>')
             + '<shape type="cube"><transform name="to_world"><scale value="0.3"/><translate value="0.3,0.3,0"/>'
               '</transform><ref id="white"/></shape>'
             '<emitter type="point"><point name="position" value="-0.3,1.5,0.4"/><rgb name="intensity" value="3,2,1"/>'
