@@ -236,3 +236,21 @@ def test_point_emitter_is_an_omni_light_matching_mitsuba(tmp_path):
     assert report["lightcuts"]["lights"] == {"omni": 1}
     assert report["comparison"]["energy_ratio"] == pytest.approx(1.0, abs=0.01)
     assert report["comparison"]["block8"]["median"] < 0.01
+
+
+def test_without_mitsuba_a_mitsuba_scene_is_one_line_naming_the_extra(tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    _xml(tmp_path, _rect(""), name="s.xml")
+    (tmp_path / "c.yaml").write_text("scene: {mitsuba: s.xml}\n")
+    code = ("import sys; sys.modules['mitsuba'] = None\nfrom lightcuts.cli import main\n"
+            f"sys.exit(main(['render', {str(tmp_path / 'c.yaml')!r}, '--out', {str(tmp_path / 'out')!r}]))\n")
+    root = Path(__file__).resolve().parents[2]
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+                       env=dict(os.environ, PYTHONPATH=str(root)))
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode == 2 and len(lines) == 1, r.stderr
+    assert lines[0].startswith("error: scene.mitsuba: needs Mitsuba 3") and lines[0].endswith("lightcuts[mitsuba]'")
+    assert not (tmp_path / "out").exists()
