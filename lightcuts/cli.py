@@ -1,4 +1,5 @@
-"""Command line: ``lightcuts lights|tree|scaling|render|reference CONFIG`` (one module each in lightcuts.commands).
+"""Command line: ``lightcuts COMMAND ...``, one module per command in lightcuts.commands (their list:
+``lightcuts.commands.COMMANDS``, which ``lightcuts --help`` shows).
 
 User errors (LightcutsError) print one line ``error: ...`` and exit with status 2. Ctrl-C (SIGINT)
 and SIGTERM print ``error: interrupted`` / ``error: terminated`` alone, remove the run's temporary
@@ -26,7 +27,9 @@ from lightcuts.errors import LightcutsError
 def build_parser() -> argparse.ArgumentParser:
     from lightcuts import __version__
 
-    ap = argparse.ArgumentParser(prog="lightcuts", description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(
+        prog="lightcuts", description="Lightcuts rendering of scenes with many lights: "
+        f"lightcuts {{{','.join(COMMANDS)}}} ...; lightcuts COMMAND --help for one command.")
     ap.add_argument("--version", action="version", version=f"lightcuts {__version__}")
     sub = ap.add_subparsers(dest="command", required=True)
     for name in COMMANDS:

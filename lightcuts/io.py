@@ -120,6 +120,18 @@ def _path_errors(key: str, path: Path) -> Iterator[None]:
         raise LightcutsError(f"{key} {str(path)!r}: {exc.strerror or one_line(exc)}") from None
 
 
+def run_dir(name: str, overrides=()) -> Path:
+    """The default output folder of a run: ``renders/<name>``, or with ``--set`` overrides
+    ``renders/<name>-set-<8 hex digits>`` (a hash of the overrides as given, in order), so a run
+    with overrides never replaces the config's own run, and the same overrides reuse their folder."""
+    if not overrides:
+        return Path("renders") / name
+    import hashlib
+
+    digest = hashlib.sha256("\n".join(str(o).strip() for o in overrides).encode()).hexdigest()[:8]
+    return Path("renders") / f"{name}-set-{digest}"
+
+
 def check_output_dir(path: str | os.PathLike, key: str, allowed=OUTPUT_FILES) -> Path:
     """LightcutsError naming ``key`` unless ``path`` can become a run's output folder: it is a
     folder holding only ``allowed`` names (shell patterns; default OUTPUT_FILES), or it can be

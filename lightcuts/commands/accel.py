@@ -81,7 +81,7 @@ def resolve_casters(text: str | None) -> list:
 def run_accel(args) -> dict:
     from lightcuts.pipeline.plan import plan_run
     from lightcuts.config import load_config
-    from lightcuts.io import check_output_dir
+    from lightcuts.io import check_output_dir, run_dir
 
     cfg = load_config(args.config, args.overrides)
     if not 1 <= args.repeats <= MAX_REPEATS:
@@ -96,7 +96,7 @@ def run_accel(args) -> dict:
                                  "e.g. configs/rooms.yaml)")
         for n in parse_counts(args.rooms):  # every count's scene checked before any work
             plan_run(load_config(args.config, list(args.overrides) + [f"scene.procedural.rooms={n}"]))
-    out = check_output_dir(Path(args.out) if args.out else Path("renders") / cfg.name / "accel",
+    out = check_output_dir(Path(args.out) if args.out else run_dir(cfg.name, args.overrides) / "accel",
                            "--out" if args.out else "name", ALLOWED)
     if sweep == "rooms":
         return _run_sweep(args, cfg, entries, out)

@@ -82,7 +82,7 @@ def run_compare(args) -> dict:
     from lightcuts.pipeline.comparing import compare_run, converging_config
     from lightcuts.pipeline.plan import plan_run
     from lightcuts.config import load_config
-    from lightcuts.io import check_output_dir
+    from lightcuts.io import check_output_dir, run_dir
     from lightcuts.report.compare_store import RowStore
     from lightcuts.scene.build import image_size
 
@@ -111,7 +111,7 @@ def run_compare(args) -> dict:
         diff = tuple(names(args.diff, "--diff"))
         if len(diff) != 2 or any(d not in labels for d in diff):
             raise LightcutsError(f"--diff {args.diff!r}: expected two different rows of {', '.join(labels)}")
-    out = check_output_dir(Path(args.out) if args.out else Path("renders") / cfg.name / "compare",
+    out = check_output_dir(Path(args.out) if args.out else run_dir(cfg.name, args.overrides) / "compare",
                            "--out" if args.out else "name", ALLOWED)
     width, height = image_size(cfg)
     pixels = sample_pixels(width, height, cfg.render.crop, args.pixels, cfg.seed) if args.pixels else None

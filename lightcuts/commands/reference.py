@@ -87,7 +87,7 @@ def run_reference(args) -> dict:
     """Run the command as the CLI does; returns the report dict (also written to report.json)."""
     from lightcuts.pipeline.convergence import PathTracer
     from lightcuts.pipeline.plan import plan_run
-    from lightcuts.io import check_output_dir
+    from lightcuts.io import check_output_dir, run_dir
     from lightcuts.limits import MAX_BOUNCES, MAX_PASSES, MAX_REFERENCE_SPP
 
     overrides = list(args.overrides) + (["lights.indirect.count=0"] if args.integrator == "direct" else [])
@@ -112,7 +112,7 @@ def run_reference(args) -> dict:
         raise LightcutsError("--max-depth: goes with --renderer mitsuba (lightcuts' path tracer has every bounce)")
     tracer = PathTracer(args.renderer)
     tracer.check(cfg, args.integrator)
-    out_dir = check_output_dir(Path(args.out) if args.out else Path("renders") / cfg.name / "reference",
+    out_dir = check_output_dir(Path(args.out) if args.out else run_dir(cfg.name, args.overrides) / "reference",
                                "--out" if args.out else "name")
     try:
         return _study(args, cfg, plan, overrides, out_dir, tracer)
@@ -173,6 +173,13 @@ def _lightcuts_image(args, cfg, plan, scene, envmap, warmup: list) -> tuple[np.n
                           "seconds": result.seconds, "cut_size_mean": float(result.cut_size.mean())}, mask
 
 
+def _xml_mapping(cfg) -> dict:
+    """The ``scene.mitsuba`` file and how each of its BSDFs is mapped (what differs from Mitsuba)."""
+    from lightcuts.scene.mitsuba_xml import bsdf_mapping
+
+    return {"file": cfg.scene.mitsuba, "bsdfs": bsdf_mapping(cfg.resolve(cfg.scene.mitsuba))}
+
+
 def _run(args, cfg, plan, out_dir: Path, warmup: list, tracer) -> dict:
     from lightcuts import __version__
     from lightcuts.io import output_set, save_json
@@ -224,6 +231,7 @@ def _run(args, cfg, plan, out_dir: Path, warmup: list, tracer) -> dict:
         "emitter_mask": EMITTER_MASK,
         "path_tracer": described,
         **({"mitsuba": described} if tracer.name == "mitsuba" else {}),
+        **({"mitsuba_xml": _xml_mapping(cfg)} if cfg.scene.mitsuba is not None else {}),
         "lightcuts": {**lc, "direct_only": args.integrator == "direct"},
         "phong_approximated": tracer.name == "mitsuba" and bool((scene.specular.max(axis=1) > 0).any()),
     }

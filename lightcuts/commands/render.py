@@ -40,13 +40,13 @@ def run_render(args) -> dict:
     """Run a render as the CLI does; returns the report dict (also written to report.json)."""
     from lightcuts.pipeline.rendering import check_reference, render_run
     from lightcuts.pipeline.plan import plan_run
-    from lightcuts.io import check_output_dir
+    from lightcuts.io import check_output_dir, run_dir
 
     cfg = load_config(args.config, args.overrides)  # every config error surfaces here, before any work
     plan = plan_run(cfg, render=True)
     if args.reference:
         check_reference(cfg, plan.integrator)
-    out_dir = check_output_dir(Path(args.out) if args.out else Path("renders") / cfg.name,
+    out_dir = check_output_dir(Path(args.out) if args.out else run_dir(cfg.name, args.overrides),
                                "--out" if args.out else "name")
     spec = cluster_spec(args)
     if spec is None:

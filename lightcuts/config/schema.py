@@ -7,8 +7,9 @@ the config file's folder and checked before any work starts.
 
 from __future__ import annotations
 
+import difflib
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, get_args
 
 import yaml
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
@@ -166,6 +167,8 @@ class SceneConfig(Strict):
 
     builtin: str | None = None
     procedural: PluginSpec | None = None
+    # A Mitsuba 3 XML scene read through Mitsuba's parser (lightcuts.scene.mitsuba_xml).
+    mitsuba: str | None = None
     meshes: list[MeshEntry] = []
     # Optional material override of named built-in surfaces (e.g. floor, short_block, tall_block).
     materials: dict[str, Material] = {}
@@ -379,19 +382,79 @@ class RunConfig(Strict):
         return q if q.is_absolute() else (Path(self.base_dir) / q)
 
 
+def _models_in(annotation) -> list:
+    """The pydantic model classes an annotation holds (through Optional, list, dict, Annotated)."""
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return [annotation]
+    return [m for arg in get_args(annotation) for m in _models_in(arg)]
+
+
+def _field_at(parts: list[str]):
+    """(the model class holding the dotted key ``parts``, its FieldInfo or None) in RunConfig."""
+    model, keyed = RunConfig, False
+    for p in parts[:-1]:
+        if p.isdigit() or keyed:  # a list's index, or a dict's key (scene.materials.<name>)
+            keyed = False
+            continue
+        info = model.model_fields.get(p)
+        inner = _models_in(info.annotation) if info is not None else []
+        if not inner:
+            return None, None
+        model = inner[0]
+        keyed = "dict" in str(info.annotation)
+    return model, model.model_fields.get(parts[-1]) if parts else None
+
+
+#: Examples of a value's form, by the length a list field must have.
+_LIST_EXAMPLES = {2: "[640, 480]", 3: "[0.5, 0.5, 0.5]", 4: "[0, 0, 64, 64]"}
+
+
+def _min_lengths(info_or_type) -> list[int]:
+    """The ``min_length`` bounds found in a field (its metadata, and Annotated types in its annotation)."""
+    found = [m.min_length for m in getattr(info_or_type, "metadata", []) if hasattr(m, "min_length")]
+    annotation = getattr(info_or_type, "annotation", None) if hasattr(info_or_type, "metadata") else info_or_type
+    for arg in get_args(annotation):
+        found += _min_lengths(arg)
+    return found
+
+
+def _expected_form(info) -> str:
+    """`` (expected <form>, e.g. <example>)`` for a list field, from its length bounds; else ''."""
+    n = next(iter(_min_lengths(info)), None) if info is not None else None
+    if n is None:
+        return ""
+    return f" (expected a list of {n} numbers, e.g. {_LIST_EXAMPLES.get(n, '[1, 2]')})"
+
+
 def _format_error(source: str, exc: ValidationError, keys=()) -> str:
     """One line for the first error; an unknown key that an override made (``keys``: the dotted keys
-    set, which make their sections on the way) is named in full, as the override gave it."""
+    set, which make their sections on the way, each a text or (key, the option that set it or None))
+    is named in full, as the override gave it, and the error names the option (``--set``) rather
+    than the file. An unknown key suggests the nearest known one of its section; a list of the
+    wrong type gives the expected form and an example."""
     e = exc.errors()[0]
     parts = [str(p) for p in e["loc"] if not (isinstance(p, str) and p.startswith("function-"))]
     loc = ".".join(parts)
     msg = e["msg"]
+    given = [(k, "--set") if isinstance(k, str) else k for k in keys]  # (dotted key, what set it)
+    given = [(k.strip(), label) for k, label in given]
     if e["type"] == "extra_forbidden":
         msg = "unknown key"
-        loc = next((k.strip() for k in keys if k.strip().split(".")[:len(parts)] == parts), loc)
+        model, _ = _field_at(parts)
+        if model is not None:
+            near = difflib.get_close_matches(parts[-1], list(model.model_fields), n=1, cutoff=0.6)
+            msg += f" (did you mean {'.'.join(parts[:-1] + near[:1])}?)" if near else \
+                f" (known: {', '.join(k for k in model.model_fields if k != 'base_dir')})"
+        loc = next((k for k, _ in given if k.split(".")[:len(parts)] == parts), loc)
     elif e["type"] == "value_error":
         msg = msg.removeprefix("Value error, ")
+    elif e["type"] == "list_type":
+        msg += _expected_form(_field_at(parts)[1])
     more = f" (and {len(exc.errors()) - 1} more)" if len(exc.errors()) > 1 else ""
+    setter = next((label for k, label in given
+                   if label and (loc == k or loc.startswith(k + ".") or k.startswith(loc + "."))), None)
+    if setter is not None:  # --set gave it, not the file (the API's values keep the file's name)
+        return f"{setter} {loc}: {msg}{more}"
     return f"{source}: {loc or '<top>'}: {msg}{more}"
 
 
@@ -436,6 +499,8 @@ def set_key(data: dict, key: str, value, prefix: str = "") -> None:
 def check_files(cfg: RunConfig, source: str) -> None:
     """Every file the config names exists and is readable: checked before any work starts."""
     named = [(f"scene.meshes.{i}.file", m.file) for i, m in enumerate(cfg.scene.meshes)]
+    if cfg.scene.mitsuba is not None:
+        named.append(("scene.mitsuba", cfg.scene.mitsuba))
     if cfg.lights.environment is not None and cfg.lights.environment.file is not None:
         named.append(("lights.environment.file", cfg.lights.environment.file))
     for key, p in named:
@@ -454,10 +519,10 @@ def config_from_dict(data: dict, source: str = "<config>", base_dir: str | Path 
     except ValidationError as exc:
         raise LightcutsError(_format_error(source, exc, keys)) from None
     sc = cfg.scene
-    if sc.builtin is None and sc.procedural is None and not sc.meshes and not sc.emitters:
-        raise LightcutsError(f"{source}: scene: needs builtin, procedural, meshes or emitters")
-    if sc.builtin is not None and sc.procedural is not None:
-        raise LightcutsError(f"{source}: scene: give at most one of builtin or procedural")
+    if sc.builtin is None and sc.procedural is None and sc.mitsuba is None and not sc.meshes and not sc.emitters:
+        raise LightcutsError(f"{source}: scene: needs builtin, procedural, mitsuba, meshes or emitters")
+    if (sc.builtin is not None) + (sc.procedural is not None) + (sc.mitsuba is not None) > 1:
+        raise LightcutsError(f"{source}: scene: give at most one of builtin, procedural or mitsuba")
     env = cfg.lights.environment
     if env is not None and (env.file is None) == (env.procedural is None):
         raise LightcutsError(f"{source}: lights.environment: give exactly one of file or procedural")
@@ -502,5 +567,5 @@ def load_config(path: str | Path, overrides: list[str] = (), values: dict | None
         if not isinstance(key, str) or not key.strip() or any(not p for p in key.strip().split(".")):
             raise LightcutsError(f"{key!r}: expected a dotted key, e.g. render.eps")
         set_key(data, key, value)
-    keys = [a.partition("=")[0] for a in overrides] + list(values or {})
+    keys = [(a.partition("=")[0], "--set") for a in overrides] + [(k, None) for k in values or {}]
     return config_from_dict(data, str(path), path.parent.resolve(), keys)

@@ -37,16 +37,30 @@ def load_environment(cfg) -> EnvironmentMap | None:
                           scale=env.scale)
 
 
+def point_lights(cfg) -> LightSet | None:
+    """The ``omni`` LightSet of the config's ``scene.mitsuba`` point emitters (direct light only:
+    lightcuts' indirect VPLs are traced from emitting triangles), or None without any."""
+    if cfg.scene.mitsuba is None:
+        return None
+    from lightcuts.scene.mitsuba_xml import xml_summary
+
+    points = xml_summary(cfg.resolve(cfg.scene.mitsuba))[2]
+    if not len(points):
+        return None
+    return LightSet(points[:, 0], np.zeros((len(points), 3)), points[:, 1], "omni")
+
+
 def lights_from_config(cfg, scene, caster=None, envmap: EnvironmentMap | None = None) -> dict[str, LightSet]:
-    """Light sets keyed by type (``oriented``, ``directional``), empty types omitted.
+    """Light sets keyed by type (``omni``, ``oriented``, ``directional``), empty types omitted.
 
     cfg : RunConfig; scene : Scene; caster : RayCaster for particle tracing (required when indirect
     lights are asked for); envmap : the config's environment map (:func:`load_environment`, loaded
     once per run by the caller), None without one.
 
-    ``oriented`` = direct lights then indirect VPLs; ``directional`` = the sun then the environment
-    samples. Each set's ``meta``: scene name, scene bbox min/max and diagonal, the run seed, and
-    ``count_direct``, ``count_indirect``, ``count_sun``, ``count_environment`` (0 when absent) plus
+    ``omni`` = the point emitters of a ``scene.mitsuba`` file; ``oriented`` = direct lights then
+    indirect VPLs; ``directional`` = the sun then the environment samples. Each set's ``meta``: scene
+    name, scene bbox min/max and diagonal, the run seed, and ``count_direct``, ``count_indirect``,
+    ``count_sun``, ``count_environment``, ``count_point`` (0 when absent) plus
     ``indirect_paths`` (the particle paths that normalise the VPLs).
 
     LightcutsError: emission the scene may not have (:meth:`Scene.check_emission`), an indirect
@@ -87,11 +101,13 @@ def lights_from_config(cfg, scene, caster=None, envmap: EnvironmentMap | None = 
         e = environment_lights(envmap, lc.environment.count, sub_seed(cfg.seed, "environment"))
         directional.append(e)
         counts["count_environment"] = len(e)
+    omni = [ls for ls in [point_lights(cfg)] if ls is not None]
+    counts["count_point"] = len(omni[0]) if omni else 0
     lo, hi = scene.bounds
     meta = {"scene": scene.name, "bbox_min": lo, "bbox_max": hi, "diagonal": scene.diagonal, "seed": cfg.seed,
             **counts}
     out = {}
-    for typ, sets in (("oriented", oriented), ("directional", directional)):
+    for typ, sets in (("omni", omni), ("oriented", oriented), ("directional", directional)):
         sets = [s for s in sets if len(s)]
         if sets:
             ls = LightSet.concatenate(sets)

@@ -18,7 +18,9 @@ Library functions (what the ``reference`` and ``compare`` commands call):
 with MIS, plus what the camera sees directly) - the quantity lightcuts computes without indirect
 VPLs; ``path`` is a unidirectional path tracer with ``max_depth`` (-1 = unbounded, Russian
 roulette), the full light transport. Mitsuba's emitters, materials and camera follow lightcuts'
-definitions (lightcuts.mitsuba.export); Phong materials are approximated there.
+definitions (lightcuts.mitsuba.export); Phong materials are approximated there. A config whose scene
+is a ``scene.mitsuba`` file alone renders that file's own shapes, BSDFs and emitters instead, with
+lightcuts' camera (:func:`_load_xml_scene`).
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ import numpy as np
 
 from lightcuts.errors import LightcutsError
 from lightcuts.mitsuba import VARIANT, load_mitsuba
-from lightcuts.mitsuba.export import INTEGRATORS, scene_dict
+from lightcuts.mitsuba.export import INTEGRATORS, camera_dict, integrator_dict, scene_dict
 
 #: Samples per pixel of the timing run of :func:`spp_for_seconds`.
 PROBE_SPP = 4
@@ -45,6 +47,8 @@ def load_scene(cfg, scene, envmap, *, spp: int, integrator: str = "path", max_de
     if int(max_depth) != max_depth or not (max_depth == -1 or max_depth >= 1):
         raise LightcutsError(f"--max-depth: {max_depth} must be -1 (unbounded) or >= 1")
     mi = load_mitsuba()
+    if cfg.scene.mitsuba is not None and not (cfg.scene.meshes or cfg.scene.emitters or cfg.lights.environment):
+        return _load_xml_scene(mi, cfg, scene, spp=int(spp), integrator=integrator, max_depth=int(max_depth))
     d = scene_dict(scene, envmap, cfg.lights.sun, spp=int(spp), integrator=integrator, max_depth=int(max_depth),
                    crop=cfg.render.crop, aperture=cfg.camera.aperture, focus_distance=cfg.camera.focus_distance)
     try:
@@ -52,6 +56,28 @@ def load_scene(cfg, scene, envmap, *, spp: int, integrator: str = "path", max_de
     except Exception as exc:
         why = " ".join(str(exc).split())
         raise LightcutsError(f"mitsuba: cannot load the exported scene ({why[:300]})") from None
+
+
+def _load_xml_scene(mi, cfg, scene, *, spp: int, integrator: str, max_depth: int):
+    """The config's ``scene.mitsuba`` file as Mitsuba loads it (its shapes, BSDFs and emitters, the
+    directional one included), with lightcuts' camera (the file's sensor with the config's camera
+    fields applied, box filter, multi-jittered sampler, ``render.crop``) and the integrator asked
+    for; so the only difference from lightcuts' image is the BSDF mapping (lightcuts.scene.mitsuba_xml)."""
+    from lightcuts.scene.mitsuba_xml import load_xml
+
+    _, xml = load_xml(cfg.resolve(cfg.scene.mitsuba))
+    d = {"type": "scene", "integrator": integrator_dict(integrator, max_depth),
+         "sensor": camera_dict(mi, scene.camera, spp, cfg.render.crop, scene.bounds, cfg.camera.aperture,
+                               cfg.camera.focus_distance)}
+    for i, shape in enumerate(xml.shapes()):
+        d[f"shape_{i:05d}"] = shape
+    for i, emitter in enumerate(e for e in xml.emitters() if e.class_name() != "AreaLight"):
+        d[f"emitter_{i:03d}"] = emitter
+    try:
+        return mi.load_dict(d)
+    except Exception as exc:
+        why = " ".join(str(exc).split())
+        raise LightcutsError(f"mitsuba: cannot load {cfg.scene.mitsuba} with lightcuts' camera ({why[:300]})") from None
 
 
 def sample_count(mi_scene) -> int:

@@ -85,6 +85,10 @@ def plan_run(cfg: RunConfig, *, render: bool = False, tree: TreeSpec | None = No
     from lightcuts.scene.registry import resolve_scene
 
     scene_type = resolve_scene(cfg.scene)
+    if cfg.scene.mitsuba is not None:
+        from lightcuts.scene.mitsuba_xml import xml_settings
+
+        cfg = xml_settings(cfg)
     if tree is None:
         tree = tree_spec(*config_tree(cfg.tree))
     lc = cfg.lights

@@ -4,6 +4,7 @@ and ``lightcuts render``: plan -> scene -> ray caster -> lights -> trees -> imag
 from __future__ import annotations
 
 import platform
+import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -135,24 +136,34 @@ def _run(cfg, plan, source, reference: bool, progress: bool, warmup: list, runne
     from lightcuts.pipeline.passes import render_passes
     from lightcuts.pipeline.timing import progress_bar
     from lightcuts.pipeline.plan import tree_meta
-    from lightcuts.pipeline.warmup import finish_warmup, start_render_warmup
+    from lightcuts.pipeline.warmup import compile_seconds, finish_warmup, start_render_warmup
     from lightcuts.integrators.registry import make_integrator
     from lightcuts.report.images import relative_error
 
-    t0 = time.perf_counter()
+    def phase(name):  # each phase named as it starts, so a long cold compile is not silence
+        if progress:
+            print(f"{cfg.name}: {name} ...", file=sys.stderr, flush=True)
+
+    t0, c0 = time.perf_counter(), compile_seconds()
+    phase("scene")
     scene = plan.scene()
     if runner is None and plan.caster.trait("warm_render_kernel", False):
         # None where the render kernel is cached (a cluster's workers load it themselves)
         warmup.append(start_render_warmup(plan.integrator.trait("kernels")))
     caster = plan.make_caster(scene)
     envmap = plan.environment()
+    phase("lights")
     light_sets = plan.lights(scene, caster, envmap)
-    t_pre = time.perf_counter() - t0
+    c_pre = compile_seconds() - c0
+    t_pre = time.perf_counter() - t0 - c_pre
 
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), compile_seconds()
+    phase("trees")
     trees = plan.trees(light_sets)
-    t_build = time.perf_counter() - t0
+    c_build = compile_seconds() - c0
+    t_build = time.perf_counter() - t0 - c_build
     used = tree_meta(trees)
+    phase("render")
 
     # The wait for numba (the child compiling the render kernel, then loading it) is reported on its own.
     wait = []
@@ -197,6 +208,7 @@ def _run(cfg, plan, source, reference: bool, progress: bool, warmup: list, runne
         "passes": passes.records,
         "preprocess_seconds": t_pre,
         "jit_seconds": t_jit,
+        "compile_seconds": {"preprocess": c_pre, "build": c_build, "render": t_jit},
         "build_seconds": t_build,
         "render_seconds": t_render,
         "cut_size_unit": plan.integrator.trait("cut_unit"),

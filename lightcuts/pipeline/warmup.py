@@ -33,17 +33,30 @@ WARMUP_TIMEOUT = 600.0
 
 
 _ANNOUNCING = False
-NOTICE = ("compiling numba kernels once (light tracing, tree builder, renderer: about half a minute on 2 cores); "
-          "later runs load them from the cache")
+#: No figure: how long compiling takes depends on the machine and its load (the run's report.json
+#: gives the seconds measured, ``compile_seconds``).
+NOTICE = ("compiling numba kernels once (light tracing, tree builder, renderer); later runs load them "
+          "from the cache; report.json gives the seconds spent compiling")
+#: Seconds numba spent compiling in this process (outermost ``numba:compile`` events), and the depth.
+_COMPILING = {"seconds": 0.0, "depth": 0, "start": 0.0}
+
+
+def compile_seconds() -> float:
+    """Wall seconds numba has spent compiling kernels in this process so far (0 until
+    :func:`announce_compiles` is called; cache loads are not compiles)."""
+    return _COMPILING["seconds"]
 
 
 def announce_compiles() -> None:
     """Print :data:`NOTICE` to stderr once, when numba first compiles a kernel in this process (not
-    on cache hits: numba's ``numba:compile`` event fires on cache misses only)."""
+    on cache hits: numba's ``numba:compile`` event fires on cache misses only), and from then on
+    count the seconds compiling takes (:func:`compile_seconds`)."""
     global _ANNOUNCING
     if _ANNOUNCING:
         return
     _ANNOUNCING = True
+    import time
+
     from numba.core import event
 
     class Once(event.Listener):
@@ -53,9 +66,14 @@ def announce_compiles() -> None:
             if not self.said:
                 self.said = True
                 print(NOTICE, file=sys.stderr, flush=True)
+            if _COMPILING["depth"] == 0:
+                _COMPILING["start"] = time.perf_counter()
+            _COMPILING["depth"] += 1
 
         def on_end(self, ev):
-            pass
+            _COMPILING["depth"] = max(0, _COMPILING["depth"] - 1)
+            if _COMPILING["depth"] == 0:
+                _COMPILING["seconds"] += time.perf_counter() - _COMPILING["start"]
 
     event.register("numba:compile", Once())
 

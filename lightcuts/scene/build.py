@@ -4,7 +4,8 @@ Camera, in order of precedence, field by field (position, look_at, up, fov, reso
 
 1. the fields ``cfg.camera`` gives;
 2. the camera of the scene type ``scene.builtin`` or ``scene.procedural`` names
-   (``lightcuts.scene.registry.SCENES``: the Cornell box's published one, the kitchen's, ...), if set;
+   (``lightcuts.scene.registry.SCENES``: the Cornell box's published one, the kitchen's, ...), or the
+   sensor of the ``scene.mitsuba`` file, if set;
 3. otherwise a default framing camera (``framing_camera``): up +y, vertical fov ``DEFAULT_FOV``,
    ``DEFAULT_RESOLUTION``, looking along -z at the centre of the scene's bounding box from the +z side,
    at the distance where the box's bounding sphere just fits in both the vertical and the horizontal
@@ -35,6 +36,11 @@ def image_size(cfg: RunConfig, scene_type: Resolved | None = None) -> tuple[int,
     before any scene is built. ``scene_type``: the plan's resolved type (else resolved here)."""
     if cfg.camera.resolution is not None:
         return tuple(cfg.camera.resolution)
+    if cfg.scene.mitsuba is not None:
+        from lightcuts.scene.mitsuba_xml import xml_summary
+
+        size = xml_summary(cfg.resolve(cfg.scene.mitsuba))[1]
+        return size if size is not None else DEFAULT_RESOLUTION
     scene_type = resolve_scene(cfg.scene) if scene_type is None else scene_type
     if scene_type is not None:
         return tuple(scene_type.trait("resolution"))
@@ -84,9 +90,9 @@ def scene_from_config(cfg: RunConfig, scene_type: Resolved | None = None) -> Sce
 
     scene_type : the plan's resolved scene type (else resolved here, see
         :func:`~lightcuts.scene.registry.resolve_scene`)
-    Triangle order: the scene type's first, then each of ``cfg.scene.meshes`` in order (a type with
-    the ``exhibits`` trait, the gallery, takes them: its room, then the meshes on their plinths),
-    then the area lights of ``cfg.scene.emitters`` (lightcuts.scene.emitters). Mesh paths are
+    Triangle order: the ``scene.mitsuba`` file's or the scene type's first, then each of
+    ``cfg.scene.meshes`` in order (a type with the ``exhibits`` trait, the gallery, takes them: its
+    room, then the meshes on their plinths), then the area lights of ``cfg.scene.emitters`` (lightcuts.scene.emitters). Mesh paths are
     resolved with ``cfg.resolve``; errors name ``scene.meshes.<i>`` / ``scene.emitters.<i>``. The
     meshes' textures share one texel budget (lightcuts.limits.MAX_SCENE_TEXELS); the emission of
     each part, then of the whole scene, is checked against the light limits
@@ -97,10 +103,17 @@ def scene_from_config(cfg: RunConfig, scene_type: Resolved | None = None) -> Sce
     if sc.materials and scene_type is None:
         raise LightcutsError(f"scene.materials.{next(iter(sc.materials))}: overrides built-in surfaces, "
                              "but neither scene.builtin nor scene.procedural is set")
+    if sc.mitsuba is not None and scene_type is not None:
+        raise LightcutsError("scene.mitsuba: goes alone, without scene.builtin or scene.procedural")
     budget = TexelBudget()
     meshes = [load_mesh(cfg.resolve(m.file), m.scale, m.rotate, m.translate, m.material, key=f"scene.meshes.{i}",
                         budget=budget) for i, m in enumerate(sc.meshes)]
     parts = []
+    if sc.mitsuba is not None:
+        from lightcuts.scene.mitsuba_xml import load_mitsuba_xml
+
+        parts.append(load_mitsuba_xml(cfg.resolve(sc.mitsuba), name=cfg.name, budget=budget)[0])
+        parts[0].check_emission(f"scene.mitsuba: {sc.mitsuba}")
     if scene_type is not None:
         if scene_type.trait("exhibits"):
             exhibits, offsets, meshes = meshes, [m.translate for m in sc.meshes], []
@@ -111,8 +124,8 @@ def scene_from_config(cfg: RunConfig, scene_type: Resolved | None = None) -> Sce
     parts += meshes
     parts += [emitter_scene(e, key=f"scene.emitters.{i}") for i, e in enumerate(sc.emitters)]
     if not parts:
-        raise LightcutsError("scene: needs builtin, procedural, meshes or emitters")
-    base_camera = parts[0].camera if scene_type is not None else None
+        raise LightcutsError("scene: needs builtin, procedural, mitsuba, meshes or emitters")
+    base_camera = parts[0].camera if scene_type is not None or sc.mitsuba is not None else None
     scene = concatenate_scenes(parts, name=cfg.name)
     scene.check_emission("scene: all its parts together")
     scene.camera = _apply_camera_config(cfg.camera, base_camera, scene.bounds)

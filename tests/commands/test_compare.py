@@ -216,12 +216,15 @@ def test_mitsuba_row_at_equal_time(tmp_path):
 def test_a_render_keeps_the_compare_folder(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     cfg = str(ROOT / "configs/cornell.yaml")
+    from lightcuts.io import run_dir
+
+    run = tmp_path / run_dir("cornell", SMALL[1::2])  # the folder of a run with these --set overrides
     assert main(["compare", cfg, "--builders", "divisive-3d", "--pixels", "0", "--no-progress", *SMALL]) == 0
-    table = (tmp_path / "renders/cornell/compare/table.md").read_text()
+    table = (run / "compare/table.md").read_text()
     assert main(["render", cfg, "--no-progress", *SMALL]) == 0
-    assert (tmp_path / "renders/cornell/image.exr").is_file()
-    assert (tmp_path / "renders/cornell/compare/table.md").read_text() == table
-    assert (tmp_path / "renders/cornell/compare/rows/divisive-3d.npz").is_file()
+    assert (run / "image.exr").is_file()
+    assert (run / "compare/table.md").read_text() == table
+    assert (run / "compare/rows/divisive-3d.npz").is_file()
 
 
 def test_multidimensional_rows_are_the_pairs_per_pixel_of_its_renders(tmp_path):

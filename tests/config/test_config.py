@@ -64,7 +64,7 @@ def write(tmp_path, text, name="run.yaml"):
     ("scene: {builtin: cornell}\nlights: {environment: {file: sky.exr}}\n", "lights.environment.file: no such file"),
     ("scene: {builtin: cornell}\nlights: {environment: {count: 4}}\n", "lights.environment: give exactly one"),
     ("render: {eps: 0.1}\n", "scene: Field required"),
-    ("scene: {}\n", "scene: needs builtin, procedural, meshes or emitters"),
+    ("scene: {}\n", "scene: needs builtin, procedural, mitsuba, meshes or emitters"),
     ("scene: [1, 2\n", "invalid YAML"),
     ("- 1\n- 2\n", "expected a mapping"),
     ("scene: {builtin: cornell}\ncamera: {resolution: [0, 10]}\n", "camera.resolution.0:"),
@@ -213,11 +213,11 @@ def test_yaml_error_without_a_line_is_one_clean_line(tmp_path):
 @pytest.mark.parametrize("key", ["no.such.key", "render.epz.x", "scene.materials.floor.albedoo.r"])
 def test_unknown_override_is_named_in_full(tmp_path, key):
     p = write(tmp_path, "scene: {builtin: cornell}\n")
-    for kwargs in ({"overrides": [f"{key}=1"]}, {"values": {key: 1}}):
+    for kwargs, where in (({"overrides": [f"{key}=1"]}, "--set"), ({"values": {key: 1}}, f"{p}:")):
         with pytest.raises(LightcutsError) as e:
             load_config(p, **kwargs)
-        assert str(e.value) == f"{p}: {key}: unknown key"
-    with pytest.raises(LightcutsError, match=r": render.epz: unknown key$"):  # a key of the file itself
+        assert str(e.value).startswith(f"{where} {key}: unknown key (")
+    with pytest.raises(LightcutsError, match=r"yaml: render.epz: unknown key \(did you mean render.eps\?\)$"):
         load_config(write(tmp_path, "scene: {builtin: cornell}\nrender: {epz: 1}\n"), ["render.eps=0.1"])
 
 
@@ -246,3 +246,31 @@ def test_readme_table_of_limits_is_lightcuts_limits():
     assert len(rows) == len(expected)
     for start, value in expected.items():
         assert [v for what, v in rows.items() if what.startswith(start)] == [value], start
+
+
+@pytest.mark.parametrize("key, hint", [
+    ("render.epss", "(did you mean render.eps?)"), ("rendr.eps", "(did you mean render?)"),
+    ("camera.resolutoin", "(did you mean camera.resolution?)"),
+    ("lights.direct.zzz", "(known: count)"),
+])
+def test_unknown_key_suggests_the_nearest(tmp_path, key, hint):
+    p = write(tmp_path, "scene: {builtin: cornell}\n")
+    with pytest.raises(LightcutsError) as e:
+        load_config(p, [f"{key}=1"])
+    assert str(e.value) == f"--set {key}: unknown key {hint}"
+
+
+@pytest.mark.parametrize("assignment, form", [
+    ("camera.resolution=160x120", "a list of 2 numbers, e.g. [640, 480]"),
+    ("camera.position=1", "a list of 3 numbers, e.g. [0.5, 0.5, 0.5]"),
+    ("render.crop=5", "a list of 4 numbers, e.g. [0, 0, 64, 64]"),
+])
+def test_a_list_of_the_wrong_type_gives_the_form(tmp_path, assignment, form):
+    p = write(tmp_path, "scene: {builtin: cornell}\n")
+    with pytest.raises(LightcutsError) as e:
+        load_config(p, [assignment])
+    key = assignment.partition("=")[0]
+    assert str(e.value) == f"--set {key}: Input should be a valid list (expected {form})"
+    with pytest.raises(LightcutsError) as e:  # the same in the file names the file
+        load_config(write(tmp_path, f"scene: {{builtin: cornell}}\ncamera: {{resolution: 7}}\n", "f.yaml"))
+    assert str(e.value).startswith(f"{tmp_path / 'f.yaml'}: camera.resolution: Input should be a valid list (expected")
