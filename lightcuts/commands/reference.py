@@ -51,9 +51,10 @@ def add_parser(sub) -> None:
     p.add_argument("--integrator", choices=("path", "direct"), default="path",
                    help="path: full light transport; direct: direct light only, lightcuts without indirect VPLs")
     p.add_argument("--max-depth", type=int, default=-1, help="path length limit of the path tracer (-1: none)")
-    p.add_argument("--renderer", choices=("mitsuba", "lightcuts"), default="mitsuba",
-                   help="the path tracer: Mitsuba 3 (independent; Phong approximated) or lightcuts' own "
-                        "(lightcuts.render.path: the exact BRDF; emitting triangles only)")
+    p.add_argument("--renderer", default="mitsuba",
+                   help="the path tracer, a reference renderer (`lightcuts plugins references`): mitsuba, Mitsuba 3 "
+                        "(independent; Phong approximated) or lightcuts, lightcuts' own (lightcuts.render.path: "
+                        "the exact BRDF; emitting triangles only)")
     study = p.add_mutually_exclusive_group()
     study.add_argument("--curve", action="store_true",
                        help="error against time: lightcuts passes 1, 2, 4, ... --passes and the path tracer "
@@ -76,7 +77,7 @@ def run(args) -> int:
 
 def run_reference(args) -> dict:
     """Run the command as the CLI does; returns the report dict (also written to report.json)."""
-    from lightcuts.pipeline.convergence import PathTracer
+    from lightcuts.render.references import REFERENCES, make_reference
     from lightcuts.pipeline.plan import plan_run
     from lightcuts.io import check_output_dir
     from lightcuts.limits import MAX_BOUNCES, MAX_PASSES, MAX_REFERENCE_SPP
@@ -99,9 +100,11 @@ def run_reference(args) -> dict:
     if not (args.max_depth == -1 or 1 <= args.max_depth <= MAX_BOUNCES):
         raise LightcutsError(f"--max-depth: {args.max_depth} must be -1 (unbounded) or from 1 to {MAX_BOUNCES} "
                              "(lightcuts.limits.MAX_BOUNCES)")
-    if args.max_depth != -1 and args.renderer != "mitsuba":
-        raise LightcutsError("--max-depth: goes with --renderer mitsuba (lightcuts' path tracer has every bounce)")
-    tracer = PathTracer(args.renderer)
+    tracer = make_reference(args.renderer)
+    if args.max_depth != -1 and not tracer.trait("max_depth"):
+        able = " or ".join(e.name for e in REFERENCES.entries() if e.trait("max_depth"))
+        raise LightcutsError(f"--max-depth: goes with --renderer {able} ({args.renderer}'s path tracer has every "
+                             "bounce)")
     tracer.check(cfg, args.integrator)
     out_dir = check_output_dir(Path(args.out) if args.out else Path("renders") / cfg.name / "reference",
                                "--out" if args.out else "name")
@@ -131,11 +134,6 @@ def _study(args, cfg, plan, overrides, out_dir: Path, tracer) -> dict:
         return _run(args, cfg, plan, out_dir, warmup, tracer)
     finally:
         finish_warmup(warmup[0] if warmup else None, timeout=0)
-
-
-def _file(tracer) -> str:
-    """The stem of the path tracer's image: ``mitsuba`` or, for lightcuts' own, ``path``."""
-    return "mitsuba" if tracer.name == "mitsuba" else "path"
 
 
 def _lightcuts_image(args, cfg, plan, scene, envmap, warmup: list) -> tuple[np.ndarray, dict]:
@@ -170,19 +168,8 @@ def _run(args, cfg, plan, out_dir: Path, warmup: list, tracer) -> dict:
     envmap = plan.environment()
     image, lc = _lightcuts_image(args, cfg, plan, scene, envmap, warmup)
 
-    t0 = time.perf_counter()
-    if tracer.name == "mitsuba":
-        from lightcuts.mitsuba.render import load_scene, render_loaded, sample_count
-
-        mi_scene = load_scene(cfg, scene, envmap, spp=args.spp, integrator=args.integrator, max_depth=args.max_depth)
-        t_load = time.perf_counter() - t0
-        spp = sample_count(mi_scene)
-        print(f"{cfg.name}: Mitsuba {args.integrator}, {spp} spp ...", flush=True)
-        ref, t_mi = render_loaded(mi_scene, cfg.seed)
-    else:
-        spp, t_load = args.spp, 0.0
-        print(f"{cfg.name}: lightcuts' path tracer, {spp} spp ...", flush=True)
-        ref, t_mi = tracer.render(cfg, scene, envmap, spp, cfg.seed)
+    ref, spp, t_load, t_mi = tracer.long_render(cfg, scene, envmap, args.spp, args.integrator, args.max_depth,
+                                                log=lambda line: print(line, flush=True))
 
     comparison = compare_images(image, ref)
     described = {**tracer.describe(), "spp": spp, "max_depth": args.max_depth, "load_seconds": t_load,
@@ -197,19 +184,19 @@ def _run(args, cfg, plan, out_dir: Path, warmup: list, tracer) -> dict:
         "crop": cfg.render.crop,
         "comparison": comparison,
         "path_tracer": described,
-        **({"mitsuba": described} if tracer.name == "mitsuba" else {}),
+        **({tracer.report_key: described} if tracer.report_key else {}),
         "lightcuts": {**lc, "direct_only": args.integrator == "direct"},
-        "phong_approximated": tracer.name == "mitsuba" and bool((scene.specular.max(axis=1) > 0).any()),
+        "phong_approximated": not tracer.trait("exact_materials") and bool((scene.specular.max(axis=1) > 0).any()),
     }
     with output_set(out_dir) as tmp_dir:
-        write_exr(tmp_dir / f"{_file(tracer)}.exr", ref)
-        write_png(tmp_dir / f"{_file(tracer)}.png", ref, cfg.render.exposure)
+        write_exr(tmp_dir / f"{tracer.file}.exr", ref)
+        write_png(tmp_dir / f"{tracer.file}.png", ref, cfg.render.exposure)
         write_exr(tmp_dir / "lightcuts.exr", image)
         write_png(tmp_dir / "lightcuts.png", image, cfg.render.exposure)
         save_json(tmp_dir / "report.json", report)
     ratio = comparison["energy_ratio"]
     e, b = comparison["pixel"], comparison.get("block8")
-    name = "Mitsuba" if tracer.name == "mitsuba" else "path tracer"
+    name = tracer.title
     line = (f"{cfg.name}: {args.integrator}, {name} {spp} spp {t_mi:.2f} s, lightcuts {lc['render_seconds']:.2f} s; "
             + (f"energy lightcuts/{name} {ratio:.4f}" if ratio is not None else f"the {name}'s image is black"))
     line += f"; relative error per pixel median {100 * e['median']:.2f}% p99 {100 * e['p99']:.2f}%"
@@ -247,8 +234,8 @@ def _run_curve(args, cfg, plan, out_dir: Path, tracer) -> dict:
                             "compensation": cfg.render.compensation, "representatives": cfg.render.representatives},
               **curve}
     with output_set(out_dir) as tmp_dir:
-        write_exr(tmp_dir / f"{_file(tracer)}.exr", ref)
-        write_png(tmp_dir / f"{_file(tracer)}.png", ref, cfg.render.exposure)
+        write_exr(tmp_dir / f"{tracer.file}.exr", ref)
+        write_png(tmp_dir / f"{tracer.file}.png", ref, cfg.render.exposure)
         write_exr(tmp_dir / "lightcuts.exr", image)
         write_png(tmp_dir / "lightcuts.png", image, cfg.render.exposure)
         save_csv(tmp_dir / "curve.csv", rows, ["method", "passes", "spp", "seconds", "energy_ratio", "pixel_median",
@@ -275,8 +262,8 @@ def _write_split(args, cfg, out_dir: Path, split: dict, tracer) -> dict:
     report = {"lightcuts_version": __version__, "config": str(Path(args.config)), "name": cfg.name, "seed": cfg.seed,
               "path_tracer": {**tracer.describe(), "spp": args.spp}, **split}
     with output_set(out_dir) as tmp_dir:
-        write_exr(tmp_dir / f"{_file(tracer)}.exr", images["path"])
-        write_png(tmp_dir / f"{_file(tracer)}.png", images["path"], cfg.render.exposure)
+        write_exr(tmp_dir / f"{tracer.file}.exr", images["path"])
+        write_png(tmp_dir / f"{tracer.file}.png", images["path"], cfg.render.exposure)
         save_csv(tmp_dir / "split.csv", rows, ["label", "energy_ratio", "pixel_median", "block8_median", "seconds",
                                                "integrator", "diffuse", "overrides"])
         save_json(tmp_dir / "report.json", report)
