@@ -51,7 +51,9 @@ def add_parser(sub) -> None:
     p.add_argument("--integrator", choices=("path", "direct"), default="path",
                    help="path: full light transport; direct: direct light only, lightcuts without indirect VPLs")
     p.add_argument("--max-depth", type=int, default=-1, help="path length limit of the path tracer (-1: none)")
-    p.add_argument("--renderer", default="mitsuba",
+    from lightcuts.render.references import DEFAULT_REFERENCE
+
+    p.add_argument("--renderer", default=DEFAULT_REFERENCE,
                    help="the path tracer, a reference renderer (`lightcuts plugins references`): mitsuba, Mitsuba 3 "
                         "(independent; Phong approximated) or lightcuts, lightcuts' own (lightcuts.render.path: "
                         "the exact BRDF; emitting triangles only)")
