@@ -35,14 +35,16 @@ def random_lights(n, light_type, seed=0, duplicates=False):
 
 @pytest.fixture
 def scratch_registries():
-    """Builders, metrics, ray casters, scene types and integrators registered in a test are forgotten
-    after it."""
+    """Builders, metrics, ray casters, scene types, integrators and reference renderers registered in a
+    test are forgotten after it."""
     from lightcuts.accel import RAY_CASTERS
+    from lightcuts.integrators.references import REFERENCES
     from lightcuts.integrators.registry import INTEGRATORS
     from lightcuts.scene.registry import SCENES
     from lightcuts.trees import BUILDERS, METRICS
 
-    with BUILDERS.scratch(), METRICS.scratch(), RAY_CASTERS.scratch(), SCENES.scratch(), INTEGRATORS.scratch():
+    with BUILDERS.scratch(), METRICS.scratch(), RAY_CASTERS.scratch(), SCENES.scratch(), INTEGRATORS.scratch(), \
+            REFERENCES.scratch():
         yield
 
 

@@ -101,7 +101,7 @@ def test_unknown_kind_is_one_error_line(capsys):
     out, err = capsys.readouterr()
     assert out == ""
     assert err == ("error: plugins: unknown kind 'nosuchkind'; valid: scenes, ray-casters, builders, metrics, "
-                   "integrators\n")
+                   "integrators, references\n")
 
 
 def test_help_lists_the_command():

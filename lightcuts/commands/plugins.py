@@ -13,13 +13,15 @@ from pathlib import Path
 from lightcuts.errors import LightcutsError
 
 #: The kinds in the order they are listed: name -> (registry module, registry name, config key(s),
-#: default entry's name in lightcuts.config.schema or None).
+#: default entry's name in lightcuts.config.schema, else in the registry module, or None).
 _KINDS = {
     "scenes": ("lightcuts.scene.registry", "SCENES", "scene.builtin, scene.procedural", None),
     "ray-casters": ("lightcuts.accel.registry", "RAY_CASTERS", "render.ray_caster", "DEFAULT_RAY_CASTER"),
     "builders": ("lightcuts.trees.registry", "BUILDERS", "tree.builder", "DEFAULT_BUILDER"),
     "metrics": ("lightcuts.trees.registry", "METRICS", "tree.metric", "DEFAULT_METRIC"),
     "integrators": ("lightcuts.integrators.registry", "INTEGRATORS", "render.integrator", "DEFAULT_INTEGRATOR"),
+    "references": ("lightcuts.integrators.references", "REFERENCES", "--renderer (lightcuts reference)",
+                   "DEFAULT_REFERENCE"),
 }
 
 
@@ -32,8 +34,10 @@ def kinds() -> dict:
 
     out = {}
     for name, (module, attr, key, default) in _KINDS.items():
-        registry = getattr(importlib.import_module(module), attr)
-        out[name] = Kind(name, registry, f"{module}.{attr}", key, getattr(schema, default) if default else None)
+        mod = importlib.import_module(module)
+        registry = getattr(mod, attr)
+        out[name] = Kind(name, registry, f"{module}.{attr}", key,
+                         getattr(schema, default, None) or getattr(mod, default) if default else None)
     return out
 
 

@@ -60,9 +60,12 @@ def add_parser(sub) -> None:
     p.add_argument("--integrator", choices=("path", "direct"), default="path",
                    help="path: full light transport; direct: direct light only, lightcuts without indirect VPLs")
     p.add_argument("--max-depth", type=int, default=-1, help="path length limit of the path tracer (-1: none)")
-    p.add_argument("--renderer", choices=("mitsuba", "lightcuts"), default="mitsuba",
-                   help="the path tracer: Mitsuba 3 (independent; Phong approximated) or lightcuts' own "
-                        "(lightcuts.integrators.path: the exact BRDF; emitting triangles only)")
+    from lightcuts.integrators.references import DEFAULT_REFERENCE
+
+    p.add_argument("--renderer", default=DEFAULT_REFERENCE,
+                   help="the path tracer, a reference renderer (`lightcuts plugins references`): mitsuba, Mitsuba 3 "
+                        "(independent; Phong approximated) or lightcuts, lightcuts' own (lightcuts.integrators.path: "
+                        "the exact BRDF; emitting triangles only)")
     study = p.add_mutually_exclusive_group()
     study.add_argument("--curve", action="store_true",
                        help="error against time: lightcuts passes 1, 2, 4, ... --passes and the path tracer "
@@ -85,7 +88,7 @@ def run(args) -> int:
 
 def run_reference(args) -> dict:
     """Run the command as the CLI does; returns the report dict (also written to report.json)."""
-    from lightcuts.pipeline.convergence import PathTracer
+    from lightcuts.integrators.references import REFERENCES, make_reference
     from lightcuts.pipeline.plan import plan_run
     from lightcuts.io import check_output_dir, run_dir
     from lightcuts.limits import MAX_BOUNCES, MAX_PASSES, MAX_REFERENCE_SPP
@@ -108,9 +111,11 @@ def run_reference(args) -> dict:
     if not (args.max_depth == -1 or 1 <= args.max_depth <= MAX_BOUNCES):
         raise LightcutsError(f"--max-depth: {args.max_depth} must be -1 (unbounded) or from 1 to {MAX_BOUNCES} "
                              "(lightcuts.limits.MAX_BOUNCES)")
-    if args.max_depth != -1 and args.renderer != "mitsuba":
-        raise LightcutsError("--max-depth: goes with --renderer mitsuba (lightcuts' path tracer has every bounce)")
-    tracer = PathTracer(args.renderer)
+    tracer = make_reference(args.renderer)
+    if args.max_depth != -1 and not tracer.trait("max_depth"):
+        able = " or ".join(e.name for e in REFERENCES.entries() if e.trait("max_depth"))
+        raise LightcutsError(f"--max-depth: goes with --renderer {able} ({args.renderer}'s path tracer has every "
+                             "bounce)")
     tracer.check(cfg, args.integrator)
     out_dir = check_output_dir(Path(args.out) if args.out else run_dir(cfg.name, args.overrides) / "reference",
                                "--out" if args.out else "name")
@@ -140,11 +145,6 @@ def _study(args, cfg, plan, overrides, out_dir: Path, tracer) -> dict:
         return _run(args, cfg, plan, out_dir, warmup, tracer)
     finally:
         finish_warmup(warmup[0] if warmup else None, timeout=0)
-
-
-def _file(tracer) -> str:
-    """The stem of the path tracer's image: ``mitsuba`` or, for lightcuts' own, ``path``."""
-    return "mitsuba" if tracer.name == "mitsuba" else "path"
 
 
 def _lightcuts_image(args, cfg, plan, scene, envmap, warmup: list) -> tuple[np.ndarray, dict, np.ndarray]:
@@ -194,19 +194,8 @@ def _run(args, cfg, plan, out_dir: Path, warmup: list, tracer) -> dict:
     # The path tracer's image is the mean of two independent halves (seeds seed and seed ^ 1): their
     # difference measures its own noise (compare_images, "reference_noise").
     half = (args.spp + 1) // 2 if args.spp > 1 else 1
-    t0 = time.perf_counter()
-    if tracer.name == "mitsuba":
-        from lightcuts.mitsuba.render import load_scene, render_loaded, sample_count
-
-        mi_scene = load_scene(cfg, scene, envmap, spp=half, integrator=args.integrator, max_depth=args.max_depth)
-        t_load = time.perf_counter() - t0
-        half = sample_count(mi_scene)
-        render = lambda seed: render_loaded(mi_scene, seed)  # noqa: E731
-        print(f"{cfg.name}: Mitsuba {args.integrator}, {half * (1 + (args.spp > 1))} spp ...", flush=True)
-    else:
-        t_load = 0.0
-        render = lambda seed: tracer.render(cfg, scene, envmap, half, seed)  # noqa: E731
-        print(f"{cfg.name}: lightcuts' path tracer, {half * (1 + (args.spp > 1))} spp ...", flush=True)
+    render, half, t_load = tracer.prepare(cfg, scene, envmap, half, args.integrator, args.max_depth)
+    print(f"{cfg.name}: {tracer.title} {args.integrator}, {half * (1 + (args.spp > 1))} spp ...", flush=True)
     ref, t_mi = render(cfg.seed)
     halves = None
     if args.spp > 1:
@@ -215,7 +204,7 @@ def _run(args, cfg, plan, out_dir: Path, warmup: list, tracer) -> dict:
     spp = half * (1 + (halves is not None))
 
     comparison = compare_images(image, ref, mask=mask, halves=halves)
-    name = "Mitsuba" if tracer.name == "mitsuba" else "path tracer"
+    name = tracer.title
     described = {**tracer.describe(), "spp": spp, "half_seeds": [cfg.seed, cfg.seed ^ 1] if halves else None,
                  "max_depth": args.max_depth, "load_seconds": t_load,
                  "render_seconds": t_mi}
@@ -230,19 +219,19 @@ def _run(args, cfg, plan, out_dir: Path, warmup: list, tracer) -> dict:
         "comparison": comparison,
         "emitter_mask": EMITTER_MASK,
         "path_tracer": described,
-        **({"mitsuba": described} if tracer.name == "mitsuba" else {}),
+        **({tracer.report_key: described} if tracer.report_key else {}),
         **({"mitsuba_xml": _xml_mapping(cfg)} if cfg.scene.mitsuba is not None else {}),
         "lightcuts": {**lc, "direct_only": args.integrator == "direct"},
-        "phong_approximated": tracer.name == "mitsuba" and bool((scene.specular.max(axis=1) > 0).any()),
+        "phong_approximated": not tracer.trait("exact_materials") and bool((scene.specular.max(axis=1) > 0).any()),
     }
     with output_set(out_dir) as tmp_dir:
-        write_exr(tmp_dir / f"{_file(tracer)}.exr", ref)
-        write_png(tmp_dir / f"{_file(tracer)}.png", ref, cfg.render.tonemap)
+        write_exr(tmp_dir / f"{tracer.file}.exr", ref)
+        write_png(tmp_dir / f"{tracer.file}.png", ref, cfg.render.tonemap)
         write_exr(tmp_dir / "lightcuts.exr", image)
         write_png(tmp_dir / "lightcuts.png", image, cfg.render.tonemap)
         save_json(tmp_dir / "report.json", report)
         write_report(tmp_dir / "report.html", pages.reference(
-            cfg, report, {"lightcuts": image, _file(tracer): ref}, mask, _file(tracer),
+            cfg, report, {"lightcuts": image, tracer.file: ref}, mask, tracer.file,
             [pages.comparison_table(comparison, name)]))
     print(f"{cfg.name}: {args.integrator}, {name} {spp} spp {t_mi:.2f} s, lightcuts {lc['render_seconds']:.2f} s")
     for line in comparison_lines(comparison, name):
@@ -314,8 +303,8 @@ def _run_curve(args, cfg, plan, out_dir: Path, tracer) -> dict:
                             "compensation": cfg.render.compensation, "representatives": cfg.render.representatives},
               "emitter_mask": EMITTER_MASK, **curve}
     with output_set(out_dir) as tmp_dir:
-        write_exr(tmp_dir / f"{_file(tracer)}.exr", ref)
-        write_png(tmp_dir / f"{_file(tracer)}.png", ref, cfg.render.tonemap)
+        write_exr(tmp_dir / f"{tracer.file}.exr", ref)
+        write_png(tmp_dir / f"{tracer.file}.png", ref, cfg.render.tonemap)
         write_exr(tmp_dir / "lightcuts.exr", image)
         write_png(tmp_dir / "lightcuts.png", image, cfg.render.tonemap)
         save_csv(tmp_dir / "curve.csv", rows, ["method", "passes", "spp", "seconds", "energy_ratio", "pixel_median",
@@ -326,8 +315,8 @@ def _run_curve(args, cfg, plan, out_dir: Path, tracer) -> dict:
         cols = [(k, k, None) for k in ("method", "passes", "spp", "seconds", "energy_ratio", "pixel_median",
                                        "block8_median")]
         write_report(tmp_dir / "report.html", pages.reference(
-            cfg, report, {f"lightcuts, {cfg.render.passes} passes": image, f"{_file(tracer)}, {args.spp} spp": ref},
-            reference_name=f"{_file(tracer)}, {args.spp} spp",
+            cfg, report, {f"lightcuts, {cfg.render.passes} passes": image, f"{tracer.file}, {args.spp} spp": ref},
+            reference_name=f"{tracer.file}, {args.spp} spp",
             tables=[Table("Error against time", cols, rows, "pixels that see an emitter directly left out")],
             plots=[("error against time", tmp_dir / "curve.png")]))
     s = curve["slope"]
@@ -351,14 +340,14 @@ def _write_split(args, cfg, out_dir: Path, split: dict, tracer) -> dict:
     report = {"lightcuts_version": __version__, "config": str(Path(args.config)), "name": cfg.name, "seed": cfg.seed,
               "path_tracer": {**tracer.describe(), "spp": args.spp}, "emitter_mask": EMITTER_MASK, **split}
     with output_set(out_dir) as tmp_dir:
-        write_exr(tmp_dir / f"{_file(tracer)}.exr", images["path"])
-        write_png(tmp_dir / f"{_file(tracer)}.png", images["path"], cfg.render.tonemap)
+        write_exr(tmp_dir / f"{tracer.file}.exr", images["path"])
+        write_png(tmp_dir / f"{tracer.file}.png", images["path"], cfg.render.tonemap)
         fields = ["label", "energy_ratio", "pixel_median", "block8_median", "seconds", "integrator", "diffuse",
                   "overrides"]
         save_csv(tmp_dir / "split.csv", rows, fields)
         save_json(tmp_dir / "report.json", report)
         write_report(tmp_dir / "report.html", pages.reference(
-            cfg, report, {f"{_file(tracer)} ({key})": im for key, im in images.items()},
+            cfg, report, {f"{tracer.file} ({key})": im for key, im in images.items()},
             tables=[Table("Energy split", [(k, k, None) for k in fields], rows,
                           "pixels that see an emitter directly left out")]))
     print(f"{cfg.name}: energy split written -> {out_dir}")

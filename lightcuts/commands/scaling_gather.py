@@ -5,7 +5,7 @@ gather points per pixel, the per-eye-ray lightcut against the multidimensional c
 The config's own scene, lights (every type it asks for) and trees (its ``tree.builder``) are made
 once; for every count G the image is rendered with both integrators: ``lightcuts`` at
 ``render.spp = G`` (a lightcut per eye ray) and ``multidimensional`` with G gather points per pixel
-(the config's ``render.integrator`` parameters if it is multidimensional, else the defaults), each
+(the config's ``render.integrator`` parameters for the one it names, the defaults for the other), each
 after an untimed one-pixel render that loads its kernel (:func:`lightcuts.pipeline.timing.render_timed`).
 Both see the same eye rays, so their images differ only by their cuts' errors. Other settings
 (eps, max_cut, clamping, crop) are the config's; ``render.max_cut`` is the budget per eye ray of
@@ -32,8 +32,16 @@ from pathlib import Path
 
 from lightcuts.errors import LightcutsError
 
-#: The integrators compared, in the CSV's order per gather count.
-INTEGRATORS = ("lightcuts", "multidimensional")
+
+def compared() -> list:
+    """The integrators compared, in the CSV's order per gather count: those of
+    lightcuts.integrators.registry.INTEGRATORS declaring ``cuts_per``, a cut per eye ray before a cut
+    per pixel."""
+    from lightcuts.integrators.registry import INTEGRATORS
+
+    order = ("eye ray", "pixel")
+    return sorted((e for e in INTEGRATORS.entries() if e.trait("cuts_per") in order),
+                  key=lambda e: (order.index(e.trait("cuts_per")), e.name))
 #: Options of build scaling that a gather run refuses.
 _BUILD_OPTIONS = (("sizes", "--sizes"), ("render", "--render"), ("builders", "--builders"), ("repeats", "--repeats"))
 
@@ -54,14 +62,17 @@ def plan_gather(config: str, overrides: list, gathers: list[int]) -> tuple[objec
     from lightcuts.config import load_config
 
     base = plan_run(load_config(config, overrides), render=True)
-    if base.cfg.camera.aperture > 0:
-        raise LightcutsError(f"--gather: camera.aperture {base.cfg.camera.aperture:g}: the lightcuts integrator it is "
-                             f"compared with renders a pinhole camera only; give --set camera.aperture=0")
-    own = base.integrator.record() if base.integrator.name == "multidimensional" else {"type": "multidimensional"}
-    specs = {"lightcuts": {"type": "lightcuts"}, "multidimensional": own}
+    entries = compared()
+    pinhole = [e.name for e in entries if not e.trait("lens")]
+    if base.cfg.camera.aperture > 0 and pinhole:
+        raise LightcutsError(f"--gather: camera.aperture {base.cfg.camera.aperture:g}: the {pinhole[0]} integrator it "
+                             f"is compared with renders a pinhole camera only; give --set camera.aperture=0")
+    # the config's own integrator keeps its parameters; the others take their defaults
+    specs = {e.name: base.integrator.record() if e is base.integrator.entry else {"type": e.name}
+             for e in entries}
     points = []
     for g in gathers:
-        for name in INTEGRATORS:
+        for name in specs:
             cfg = load_config(config, list(overrides) + [f"render.spp={g}",
                                                          f"render.integrator={json.dumps(specs[name])}"])
             points.append((g, name, plan_run(cfg, render=True)))
@@ -95,14 +106,15 @@ def run_gather(args, gathers: list[int]) -> list[dict]:
                 bar.set_postfix_str(f"G={g} {name}")
                 result, seconds, _ = render_timed(plan.cfg, scene, caster, lights, trees, envmap, no_progress=True,
                                                   integrator=plan.integrator)
-                per_pixel = float(result.cut_size.mean()) * (g if name == "lightcuts" else 1)
-                max_pixel = float(result.cut_size.max()) * (g if name == "lightcuts" else 1)
+                per_eye_ray = plan.integrator.trait("cuts_per") == "eye ray"
+                per_pixel = float(result.cut_size.mean()) * (g if per_eye_ray else 1)
+                max_pixel = float(result.cut_size.max()) * (g if per_eye_ray else 1)
                 row = dict(gather=g, integrator=name, image_s=seconds, cut_per_pixel=per_pixel,
                            shadow_rays_per_pixel=result.shadow_rays / result.cut_size.size,
                            cut_per_gather=per_pixel / g, cut_max_per_pixel=max_pixel,
                            n_lights=sum(len(ls) for ls in lights.values()), image_diff_median=None,
                            image_diff_max=None)
-                if name == "lightcuts":
+                if per_eye_ray:
                     pinhole = result.image
                 else:
                     diff = relative_error(result.image, pinhole)

@@ -154,7 +154,7 @@ def _render_band(cdata, width, cam, seed, spp, sx, sy, x0, x1, y0, y1, face_norm
 
 
 @INTEGRATORS.register("lightcuts")
-@declare(lens=False, cut_unit="light nodes per eye ray", kernels="lightcuts.integrators.lightcut", converging=True,
+@declare(lens=False, cut_unit="light nodes per eye ray", cuts_per="eye ray", kernels="lightcuts.integrators.lightcut", converging=True,
          reference=True, forest=True)
 class Lightcuts(CutIntegrator):
     """A lightcut per eye ray through every light tree (Walter et al. 2005).

@@ -14,7 +14,8 @@ The registry's entries are the integrator classes, each beside its kernels (its 
 ``{type: NAME, param: value, ...}`` (default ``lightcuts``); the plan step resolves it and builds it
 (:func:`make_integrator`) before any work, and the commands build it the same way. A class declares
 (:func:`lightcuts.registry.declare`) its own parameters and its traits: ``cut_unit`` (what its cut
-sizes count, as report.json names it), ``lens`` (it renders a thin lens: the plan refuses
+sizes count, as report.json names it), ``cuts_per`` (for integrators that cut light trees: what
+one cut serves, ``eye ray`` or ``pixel``; ``lightcuts scaling --gather`` compares one of each), ``lens`` (it renders a thin lens: the plan refuses
 ``camera.aperture > 0`` otherwise), ``converging`` (it takes ``render.compensation``,
 ``render.representatives`` and ``render.continuation_rays``; the plan refuses them otherwise),
 ``reference`` (it has a brute-force reference: ``--reference`` and compare's errors), ``forest`` (it

@@ -3,8 +3,9 @@
 Both measure lightcuts' images against one long path-traced render of the same config (its
 ``--spp``, seed ``seed + 1``) with :func:`lightcuts.report.images.compare_images` (energy ratio,
 per-pixel and 8x8-block relative luminance error), the pixels that see an emitter directly left
-out (:func:`lightcuts.integrators.primary.emitter_mask`). The path tracer (:class:`PathTracer`) is
-Mitsuba 3's or lightcuts' own with the exact BRDF (``--renderer``).
+out (:func:`lightcuts.integrators.primary.emitter_mask`). The path tracer is a reference renderer
+(lightcuts.integrators.references.REFERENCES, ``--renderer``): Mitsuba 3's or lightcuts' own with the
+exact BRDF.
 
 * :func:`error_curve`: lightcuts' running mean after passes 1, 2, 4, ... N of the config
   (:func:`lightcuts.pipeline.passes.render_passes`, wall time of lights, trees and image summed over the
@@ -22,7 +23,7 @@ import dataclasses
 
 import numpy as np
 
-from lightcuts.errors import LightcutsError
+from lightcuts.integrators.references import DEFAULT_REFERENCE, make_reference
 
 #: The measures of a curve point, as compare_images gives them: (CSV column, path into its dict).
 MEASURES = (("energy_ratio", ("energy_ratio",)), ("pixel_median", ("pixel", "median")),
@@ -59,119 +60,48 @@ def loglog_slope(x, y) -> float | None:
     return float(np.polyfit(np.log(x[keep]), np.log(y[keep]), 1)[0])
 
 
-#: The path tracers a run can be measured against: Mitsuba 3's (an independent renderer; Phong
-#: approximated) and lightcuts' own (lightcuts.integrators.path: the exact BRDF; emitters only).
-RENDERERS = ("mitsuba", "lightcuts")
-
-
-class PathTracer:
-    """One of :data:`RENDERERS`, rendering runs: ``render(cfg, scene, envmap, spp, seed, integrator)
-    -> (image, seconds)`` (seconds: the render alone) and ``seconds_per_spp(cfg, scene, envmap)``
-    (timing runs)."""
-
-    def __init__(self, name: str = "mitsuba"):
-        if name not in RENDERERS:
-            raise LightcutsError(f"--renderer: {name!r} is not one of {', '.join(RENDERERS)}")
-        self.name = name
-        #: its rows' "method" in a curve: ``mitsuba`` or ``lightcuts-path``
-        self.label = "mitsuba" if name == "mitsuba" else "lightcuts-path"
-        self._casters = {}
-
-    def check(self, cfg, integrator: str = "path") -> None:
-        """LightcutsError (before any work) if this renderer cannot render the run."""
-        if self.name == "mitsuba":
-            from lightcuts.mitsuba import load_mitsuba
-
-            load_mitsuba()
-            return
-        why = ("--integrator direct" if integrator != "path" else "lights.sun" if cfg.lights.sun is not None
-               else "lights.environment" if cfg.lights.environment is not None
-               else "camera.aperture" if cfg.camera.aperture > 0 else None)
-        if why is not None:
-            raise LightcutsError(f"--renderer lightcuts: its path tracer renders emitting triangles through a "
-                                 f"pinhole, with every bounce; {why} needs --renderer mitsuba")
-
-    def describe(self) -> dict:
-        if self.name == "mitsuba":
-            from lightcuts.mitsuba.render import mitsuba_version
-
-            return {"renderer": "mitsuba", **mitsuba_version()}
-        from lightcuts import __version__
-
-        return {"renderer": "lightcuts", "version": __version__, "variant": "lightcuts.integrators.path"}
-
-    def render(self, cfg, scene, envmap, spp: int, seed: int, integrator: str = "path") -> tuple[np.ndarray, float]:
-        if self.name == "mitsuba":
-            from lightcuts.mitsuba.render import render_mitsuba
-
-            return render_mitsuba(cfg, scene, envmap, spp=spp, integrator=integrator, seed=seed)
-        from lightcuts.accel import make_caster
-        from lightcuts.integrators.path import path_trace
-
-        if id(scene) not in self._casters:
-            self._casters[id(scene)] = (scene, make_caster(scene))
-        return path_trace(scene, self._casters[id(scene)][1], spp=spp, seed=seed, crop=cfg.render.crop)
-
-    def seconds_per_spp(self, cfg, scene, envmap, min_seconds: float = 1.0) -> float:
-        """Render seconds per sample per pixel, from timing runs of doubling spp until one takes
-        ``min_seconds`` (a short run's fixed costs would overstate it)."""
-        if self.name == "lightcuts":
-            self.render(cfg, scene, envmap, 1, 0)  # numba loads (or compiles) the kernel
-        spp = 4
-        while True:
-            _, t = self.render(cfg, scene, envmap, spp, 0)
-            if t >= min_seconds or spp >= 1 << 16:
-                return max(t / spp, 1e-9)
-            spp *= 2
-
-    def close(self) -> None:
-        for _, caster in self._casters.values():
-            caster.close()
-        self._casters.clear()
-
-
 def long_reference(cfg, scene, envmap, spp: int, integrator: str = "path",
-                   tracer: PathTracer | None = None) -> tuple[np.ndarray, float]:
+                   tracer=None) -> tuple[np.ndarray, float]:
     """The long render of the config at ``spp`` (seed ``cfg.seed + 1``, apart from the equal-time
     renders' seed) by ``tracer`` (default Mitsuba's): (image, seconds)."""
-    return (tracer or PathTracer()).render(cfg, scene, envmap, spp, cfg.seed + 1, integrator)
+    return (tracer or make_reference(DEFAULT_REFERENCE)).render(cfg, scene, envmap, spp, cfg.seed + 1, integrator)
 
 
 def error_curve(cfg, plan, scene, envmap, caster, reference: np.ndarray, progress: bool = True,
-                log=print, tracer: PathTracer | None = None) -> dict:
+                log=print, tracer=None) -> dict:
     """The curve (module docstring) for ``cfg.render.passes`` passes: {"rows": [{"method",
     "passes", "spp", "seconds", "energy_ratio", "pixel_median", "block8_median"}, ...], "slope":
     {measure: lightcuts' fitted slope}, "verdict": [{"seconds", "pixel": winner, "block8":
     winner}, ...], "image": the final running mean}; the path tracer's rows have its
-    :attr:`PathTracer.label` as "method". Its points are its render times (the render call
+    :attr:`ReferenceRenderer.label` as "method". Its points are its render times (the render call
     alone), lightcuts' the summed pass times. ``tracer``: the path tracer (default Mitsuba's)."""
     from lightcuts.pipeline.passes import render_passes
     from lightcuts.integrators.primary import emitter_mask
 
-    tracer = tracer or PathTracer()
+    tracer = tracer or make_reference(DEFAULT_REFERENCE)
     points = set(pass_counts(cfg.render.passes))
     mask = emitter_mask(scene, caster, cfg.render.crop, envmap is not None)
-    rows = []
+    lc = []
 
     def on_pass(p, mean, seconds):
         if p + 1 in points:
-            rows.append({"method": "lightcuts", "passes": p + 1, "spp": cfg.render.spp * (p + 1),
-                         "seconds": seconds, **measures(mean, reference, mask)})
+            lc.append({"method": "lightcuts", "passes": p + 1, "spp": cfg.render.spp * (p + 1),
+                       "seconds": seconds, **measures(mean, reference, mask)})
             log(f"{cfg.name}: lightcuts {p + 1} passes, {seconds:.2f} s: block8 median "
-                f"{100 * (rows[-1]['block8_median'] or 0):.2f}%")
+                f"{100 * (lc[-1]['block8_median'] or 0):.2f}%")
 
     result = render_passes(cfg, plan, scene, caster, envmap, desc=f"{cfg.name}: lightcuts", progress=progress,
                            on_pass=on_pass)
     per_spp = tracer.seconds_per_spp(cfg, scene, envmap)
-    for r in list(rows):
+    mi = []
+    for r in lc:
         spp = max(1, int(round(r["seconds"] / per_spp)))
         image, seconds = tracer.render(cfg, scene, envmap, spp, cfg.seed)
-        rows.append({"method": tracer.label, "passes": None, "spp": spp, "seconds": seconds,
-                     **measures(image, reference, mask)})
+        mi.append({"method": tracer.label, "passes": None, "spp": spp, "seconds": seconds,
+                   **measures(image, reference, mask)})
         log(f"{cfg.name}: {tracer.label} {spp} spp, {seconds:.2f} s: block8 median "
-            f"{100 * (rows[-1]['block8_median'] or 0):.2f}%")
-    lc = [r for r in rows if r["method"] == "lightcuts"]
-    mi = [r for r in rows if r["method"] != "lightcuts"]
+            f"{100 * (mi[-1]['block8_median'] or 0):.2f}%")
+    rows = lc + mi
     slope = {key: loglog_slope([r["seconds"] for r in lc], [r[key] for r in lc])
              for key in ("pixel_median", "block8_median")}
     verdict = [{"seconds": a["seconds"], "path_tracer_seconds": b["seconds"],
@@ -205,7 +135,7 @@ def diffuse_scene(scene):
 
 
 def energy_split(make_run, passes: int, spp: int, progress: bool = True, log=print,
-                 tracer: PathTracer | None = None) -> dict:
+                 tracer=None) -> dict:
     """The energy split (module docstring). ``make_run(overrides) -> (cfg, plan)`` loads the run
     with extra ``--set`` overrides; ``passes`` the pass count of the rows that use passes; ``spp``
     the path tracer's samples per pixel; ``tracer`` the path tracer (default Mitsuba's; rows it
@@ -216,10 +146,10 @@ def energy_split(make_run, passes: int, spp: int, progress: bool = True, log=pri
     from lightcuts.pipeline.passes import render_passes
     from lightcuts.integrators.primary import emitter_mask
 
-    tracer = tracer or PathTracer()
+    tracer = tracer or make_reference(DEFAULT_REFERENCE)
     runs = []  # every row's run is loaded and planned before any work: a refused one stops here
     for label, overrides, diffuse, integrator in SPLIT_ROWS:
-        if tracer.name == "lightcuts" and integrator != "path":
+        if integrator not in tracer.trait("integrators", ()):
             continue
         overrides = [o.format(passes=passes) for o in overrides]
         runs.append((label.format(passes=passes), overrides, diffuse, integrator, *make_run(overrides)))

@@ -96,7 +96,7 @@ def _render_band(cdata, cam, seed, spp, sx, sy, aperture, focus, x0, x1, y0, y1,
 
 
 @INTEGRATORS.register("multidimensional")
-@declare(lens=True, cut_unit="pairs per pixel", kernels="lightcuts.integrators.multidim.render", reference=True,
+@declare(lens=True, cut_unit="pairs per pixel", cuts_per="pixel", kernels="lightcuts.integrators.multidim.render", reference=True,
          forest=True, params={
              "representatives": Param(int, DEFAULT_REPRESENTATIVES, lo=1, hi=64,
                                       doc="light representatives per light node (1: the tree's own only)"),
