@@ -59,6 +59,7 @@ def _one_line(exc_info, start: str) -> None:
     (lambda p: lightcuts.render(p, cluster="tcp://127.0.0.1:1", tile_size=0), "tile_size 0: must be from 1 to 8,192"),
     (lambda p: lightcuts.compare(p, cluster=[1]), "cluster [1]: expected a distributed.Client"),
     (lambda p: lightcuts.load_config(42), "config 42: expected a path"),
+    (lambda p: lightcuts.load_config("a\nb.yaml"), "a\\nb.yaml: cannot read config"),  # one line, escaped
     (lambda p: lightcuts.load_config(p, **{"no.such.key": 1}), f"{{p}}: no.such.key: unknown key"),
     (lambda p: lightcuts.load_config(p, render__spp=limits.MAX_SPP + 1), "{p}: render.spp: "),
 ])
