@@ -103,10 +103,14 @@ class Session:
         return {addr: int(w.get("nthreads", 1)) for addr, w in info.get("workers", {}).items()}
 
     def warm(self, kernels: str | None) -> None:
-        """Start loading the render kernel (module ``kernels``) on every worker (one task pinned to
+        """Import on every worker the modules its tasks unpickle into (:func:`import_modules`), then
+        start loading the render kernel (module ``kernels``, None: none) on each (one task pinned to
         each), while the client makes the scene, lights and trees."""
-        from lightcuts.distributed.worker import warm_task
+        from lightcuts.distributed.worker import import_modules, warm_task
 
+        self.client.run(import_modules, kernels)
+        if kernels is None:
+            return
         for i, addr in enumerate(self.workers()):
             self.warming += self.track([self.client.submit(warm_task, kernels, key=f"lightcuts-warm-{i}-{id(self)}",
                                                            workers=[addr], allow_other_workers=False)])
@@ -238,8 +242,7 @@ def local_cluster(workers: int, threads: int | None = None, kernels: str | None 
             cluster.close()
             raise
         session._client, session._cluster, session.worker_pids = client, cluster, pids
-        if kernels is not None:
-            session.warm(kernels)
+        session.warm(kernels)
         return client, cluster, pids
 
     session._start(start)
@@ -323,8 +326,7 @@ def open_session(spec, kernels: str | None = None) -> Session:
     if spec.workers is not None:
         return local_cluster(spec.workers, kernels=kernels)
     session = connect(spec.scheduler, spec.tls, spec.connect_timeout)
-    if kernels is not None:
-        session.warm(kernels)
+    session.warm(kernels)
     return session
 
 
@@ -356,8 +358,7 @@ def cluster_session(cluster, kernels: str | None = None, key: str = "cluster"):
     except LightcutsError as exc:  # connect's and check_versions' lines name the CLI's flag
         raise LightcutsError(str(exc).replace("--scheduler", key, 1)) from None
     try:
-        if kernels is not None:
-            session.warm(kernels)
+        session.warm(kernels)
         yield session
     finally:
         session.close()

@@ -123,6 +123,27 @@ def warm(kernels: str | None) -> float:
     return _WARM[kernels]
 
 
+#: The modules whose objects a task's arguments hold (config, scene, textures, lights, trees, the
+#: integrators and their forest).
+DATA_MODULES = ("lightcuts.config.schema", "lightcuts.scene.scene", "lightcuts.scene.textures",
+                "lightcuts.lights.lightset", "lightcuts.lights.environment", "lightcuts.trees.tree",
+                "lightcuts.integrators.registry", "lightcuts.integrators.forest")
+
+
+def import_modules(kernels: str | None) -> None:
+    """Import :data:`DATA_MODULES` and the integrator modules (and ``kernels``) in this worker, run
+    once before its first task (``Client.run``): a task's arguments unpickled in one thread while the
+    warm task imports the kernels in another can otherwise meet a half-initialised module of the
+    same package (Python's import deadlock avoidance hands one thread the partial module)."""
+    import importlib
+
+    from lightcuts.integrators.registry import INTEGRATORS
+
+    for name in DATA_MODULES + ((kernels,) if kernels else ()):
+        importlib.import_module(name)
+    INTEGRATORS.names()  # imports every built-in integrator's module
+
+
 def warm_task(kernels: str | None) -> dict:
     """A task that warms this worker (:func:`warm`) while the client makes the scene, lights and trees."""
     seconds, info = exclusive(warm, kernels)
