@@ -24,10 +24,13 @@ from lightcuts.integrators.forest import TYPE_CODES, _check_lights, _check_tree
 from lightcuts.integrators.importance import (REC_COS, REC_HI, REC_LO, REC_PHI, REC_WIDTH, light_pmf, oct_decode,
                                               sample_light)
 from lightcuts.lights.lightset import LIGHT_TYPES, LUMINANCE
+from lightcuts.parallel import on_threads
 from lightcuts.rounding import down32, up32
 
 #: Extra half-angle (radians) added to a cone beyond its axis's measured quantisation error.
 CONE_MARGIN = 1e-6
+# Below this many nodes the record kernels run on one thread.
+_PARALLEL_MIN = 20000
 
 
 @dataclass
@@ -88,32 +91,27 @@ def _draw_all(rec, axis, child, parent, leaf, roots, root_type, p0, p1, p2, n0, 
     return lights, probs
 
 
-def _oct_encode(v: np.ndarray) -> np.ndarray:
-    """(K,) uint32 octahedral codes of the (K, 3) unit vectors (zeros map to +z)."""
-    v = np.asarray(v, np.float64)
-    s = np.abs(v).sum(axis=1)
-    s[s == 0] = 1.0
-    x, y, z = v[:, 0] / s, v[:, 1] / s, v[:, 2] / s
-    zero = (v == 0).all(axis=1)
-    x[zero], y[zero], z[zero] = 0.0, 0.0, 1.0
-    neg = z < 0
-    sx = np.where(x >= 0, 1.0, -1.0)
-    sy = np.where(y >= 0, 1.0, -1.0)
-    x2 = np.where(neg, (1.0 - np.abs(y)) * sx, x)
-    y2 = np.where(neg, (1.0 - np.abs(x)) * sy, y)
-    qx = np.rint((np.clip(x2, -1, 1) * 0.5 + 0.5) * 65535.0).astype(np.uint32)
-    qy = np.rint((np.clip(y2, -1, 1) * 0.5 + 0.5) * 65535.0).astype(np.uint32)
+@njit(cache=True, error_model="numpy")
+def _oct_encode(v0, v1, v2):
+    """The uint32 octahedral code (two 16-bit halves) of the unit vector v (zero maps to +z)."""
+    s = abs(v0) + abs(v1) + abs(v2)
+    if s == 0.0:
+        v0, v1, v2, s = 0.0, 0.0, 1.0, 1.0
+    x, y = v0 / s, v1 / s
+    if v2 < 0.0:
+        x, y = (1.0 - abs(y)) * (1.0 if x >= 0.0 else -1.0), (1.0 - abs(x)) * (1.0 if y >= 0.0 else -1.0)
+    qx = np.uint32(np.rint((min(1.0, max(-1.0, x)) * 0.5 + 0.5) * 65535.0))
+    qy = np.uint32(np.rint((min(1.0, max(-1.0, y)) * 0.5 + 0.5) * 65535.0))
     return qx | (qy << np.uint32(16))
 
 
-@njit(cache=True)
-def _records(order, new_id, left, light, lo, hi, cone_axis, cone_cos, phi, light_lo, light_hi, boxed,
-             codes, node_base, light_base, tree_id, rec, axis, child, parent, leaf):
-    """One tree's rows (level order ``order``, ``new_id`` its inverse) of the sampler's records,
-    global ids from ``node_base`` and ``light_base``; boxes refitted bottom-up where ``boxed``."""
-    k = order.shape[0]
-    box = np.empty((k, 6))
-    for t in range(k):
+@njit(cache=True, nogil=True)
+def _gather(order, new_id, left, light, lo, hi, light_lo, light_hi, boxed, node_base, light_base, box, child,
+            parent, leaf, s, e):
+    """Rows s..e-1 of one tree (level order ``order``, ``new_id`` its inverse): box (K, 6) float64
+    (a leaf's from ``light_lo``/``light_hi`` where ``boxed``), child, parent, leaf, with global ids
+    from ``node_base`` and ``light_base``."""
+    for t in range(s, e):
         old = order[t]
         for d in range(3):
             box[t, d] = lo[old, d]
@@ -131,29 +129,44 @@ def _records(order, new_id, left, light, lo, hi, cone_axis, cone_cos, phi, light
             child[t] = node_base + c
             parent[c] = node_base + t
             parent[c + 1] = node_base + t
-    parent[0] = -(tree_id + 1)
-    if boxed:  # children come after their parent in level order
-        for t in range(k - 1, -1, -1):
-            if child[t] >= 0:
-                c = child[t] - node_base
-                for d in range(3):
-                    box[t, d] = min(box[c, d], box[c + 1, d])
-                    box[t, 3 + d] = max(box[c, 3 + d], box[c + 1, 3 + d])
-    for t in range(k):
+
+
+@njit(cache=True)
+def _refit(box, child, node_base):
+    """Every inner box the union of its children's, from the last row up (children follow their
+    parent in level order)."""
+    for t in range(box.shape[0] - 1, -1, -1):
+        if child[t] >= 0:
+            c = child[t] - node_base
+            for d in range(3):
+                box[t, d] = min(box[c, d], box[c + 1, d])
+                box[t, 3 + d] = max(box[c, 3 + d], box[c + 1, 3 + d])
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _pack(order, box, cone_axis, cone_cos, phi, rec, axis, s, e):
+    """Rows s..e-1 of the records: box rounded outwards, power, the cone's axis encoded and its
+    cosine widened by the encoding's error (cos(theta_o + theta_q + CONE_MARGIN) without trigonometry)."""
+    for t in range(s, e):
         old = order[t]
         for d in range(3):
             rec[t, REC_LO + d] = down32(box[t, d])
             rec[t, REC_HI + d] = up32(box[t, 3 + d])
         rec[t, REC_PHI] = np.float32(phi[old])
-        axis[t] = codes[t]
-        c = cone_cos[old]
+        c = min(1.0, cone_cos[old])
         if c <= -1.0:
+            axis[t] = 0
             rec[t, REC_COS] = np.float32(-1.0)
             continue
-        a0, a1, a2 = oct_decode(codes[t])
-        e = cone_axis[old, 0] * a0 + cone_axis[old, 1] * a1 + cone_axis[old, 2] * a2
-        beta = np.arccos(min(1.0, max(-1.0, c))) + np.arccos(min(1.0, max(-1.0, e))) + CONE_MARGIN
-        rec[t, REC_COS] = np.float32(-1.0) if beta >= np.pi else down32(np.cos(beta))
+        axis[t] = _oct_encode(cone_axis[old, 0], cone_axis[old, 1], cone_axis[old, 2])
+        a0, a1, a2 = oct_decode(axis[t])
+        q = min(1.0, max(-1.0, cone_axis[old, 0] * a0 + cone_axis[old, 1] * a1 + cone_axis[old, 2] * a2))
+        if c <= -q:  # theta_o + theta_q >= pi
+            rec[t, REC_COS] = np.float32(-1.0)
+            continue
+        cb = c * q - np.sqrt(max(0.0, 1.0 - c * c)) * np.sqrt(max(0.0, 1.0 - q * q))
+        cb -= np.sqrt(max(0.0, 1.0 - cb * cb)) * CONE_MARGIN + 1e-12
+        rec[t, REC_COS] = np.float32(-1.0) if cb <= -1.0 else down32(cb)
 
 
 def _luminance(rgb: np.ndarray) -> np.ndarray:
@@ -194,9 +207,14 @@ def build_light_sampler(lights: dict, trees: dict, boxes: dict | None = None) ->
             if lo.shape != (len(ls), 3) or hi.shape != (len(ls), 3) or not np.all(lo <= hi):
                 raise LightcutsError(f"lights.{typ}: per-light boxes must be (N, 3) with lo <= hi for {len(ls)} lights")
         rows = slice(node_base, node_base + k)
-        _records(order, new_id, tree.left, tree.light, tree.bbox_min, tree.bbox_max, tree.cone_axis, tree.cone_cos,
-                 _luminance(tree.intensity), lo, hi, len(lo) > 0, _oct_encode(tree.cone_axis[order]), node_base, light_base, t,
-                 rec[rows], axis[rows], child[rows], parent[rows], leaf)
+        box = np.empty((k, 6))
+        on_threads(_gather, k, _PARALLEL_MIN, order, new_id, tree.left, tree.light, tree.bbox_min, tree.bbox_max,
+                   lo, hi, len(lo) > 0, node_base, light_base, box, child[rows], parent[rows], leaf)
+        parent[node_base] = -(t + 1)
+        if len(lo):
+            _refit(box, child[rows], node_base)
+        on_threads(_pack, k, _PARALLEL_MIN, order, box, np.ascontiguousarray(tree.cone_axis),
+                   np.ascontiguousarray(tree.cone_cos), _luminance(tree.intensity), rec[rows], axis[rows])
         roots.append(node_base)
         root_type.append(TYPE_CODES[typ])
         offset[typ] = light_base
