@@ -1,8 +1,12 @@
 """Multidimensional lightcuts against per-eye-ray lightcuts on a config at a reduced size.
 
 Times (kernels loaded on one pixel first, untimed): lightcuts at 1 spp and at N spp, multidimensional
-at N gather points; pairs per pixel; per-pixel luminance error of the N-spp images against the
-N-point brute-force reference (the same eye rays) on a seeded sample of pixels.
+at N gather points (the config's thin lens, if any: lightcuts renders a pinhole); pairs per pixel;
+shadow rays per second of the multidimensional kernel, over its whole time and over the time
+visibility adds to it (the image again without shadow rays, whose cut differs a little); per-pixel luminance error of the N-spp
+images against the N-point brute-force reference (the same eye rays) on a seeded sample of lit
+pixels (lit in the 1-spp lightcut image, so the sample does not depend on the image measured;
+``--pixels 0``: no errors).
 
     PYTHONPATH=. python benchmarks/bench_multidim.py configs/cornell.yaml --size 128 --spp 16 --pixels 200
 """
@@ -48,6 +52,7 @@ def main() -> None:
     # The multidimensional integrator's parameters from the config (render.integrator: {type:
     # multidimensional, representatives: R, gather_representatives: RG}), its defaults otherwise.
     md_params = dict(plan.integrator.params) if plan.integrator.name == "multidimensional" else {}
+    md_params.update(aperture=cfg.camera.aperture, focus_distance=cfg.camera.focus_distance)
 
     def timed(fn, *args, **kw):
         fn(*args, **{**kw, "crop": (0, 0, 1, 1)})  # load the kernel
@@ -63,13 +68,22 @@ def main() -> None:
           f"multidimensional {a.spp} {tm:.2f} s (pairs per pixel {md.cut_size.mean():.0f}, "
           f"shadow rays per pixel {md.shadow_rays / (w * h):.0f})")
     print(f"time ratios: md/lc1 {tm / t1:.2f}, lc{a.spp}/md {tn / tm:.2f}")
-    lum = md.image @ LUMINANCE
+    _, tv = timed(render_multidimensional, scene, caster, lights, trees, spp=a.spp, **common, **cut, **md_params,
+                  visibility=False)
+    print(f"multidimensional shadow rays {md.shadow_rays}: {md.shadow_rays / tm / 1e6:.2f} M/s over the image, "
+          f"{md.shadow_rays / max(tm - tv, 1e-9) / 1e6:.2f} M/s over the {tm - tv:.2f} s visibility adds "
+          f"(lightcuts 1 spp: {lc1.shadow_rays / t1 / 1e6:.2f} M/s over the image)")
+    if a.pixels <= 0:
+        caster.close()
+        return
+    lum = lc1.image @ LUMINANCE
     rng = np.random.default_rng(cfg.seed)
     lit = np.argwhere(lum > 1e-3 * lum.max())
     pick = lit[rng.choice(len(lit), min(a.pixels, len(lit)), replace=False)]
     pix = pick[:, ::-1].copy()  # (x, y)
     t = time.perf_counter()
-    ref = render_multidimensional_reference(scene, caster, lights, spp=a.spp, pixels=pix, **common)
+    lens = dict(aperture=cfg.camera.aperture, focus_distance=cfg.camera.focus_distance)
+    ref = render_multidimensional_reference(scene, caster, lights, spp=a.spp, pixels=pix, **common, **lens)
     print(f"reference on {len(pix)} pixels: {time.perf_counter() - t:.1f} s")
     r = (ref.image[:, 0] @ LUMINANCE).astype(np.float64)
     for name, img in (("multidimensional", md.image), (f"lightcuts {a.spp} spp", lcn.image)):

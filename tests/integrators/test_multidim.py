@@ -235,6 +235,41 @@ def test_gather_clusters_of_unlike_albedo_estimate_their_mean():
     assert np.max(np.abs(a - b) / b) < 0.05
 
 
+class _OneRayPackets:
+    """A caster whose shadow-ray packets hold one ray: the product cut then casts each ray as its
+    pair enters the cut, before anything else happens (no ray ever waits)."""
+
+    def __init__(self, caster):
+        self.kernel_caster = caster.kernel_caster._replace(width=1)
+
+
+@pytest.mark.parametrize("gather_reps", [1, 4])
+def test_deferred_visibility_gives_the_cut_of_rays_cast_at_once(cornell, gather_reps):
+    """Shadow rays wait in packets (docs/math.md, "Deferred visibility"), and the cut, its estimate
+    and the shadow rays are those of casting each ray at once (packets of one); with gather
+    representatives a ray that no child pair keeps leaves the packet uncast."""
+    scene, caster, camera, lights, trees = cornell
+    kwargs = dict(camera=camera, spp=4, seed=3, gather_representatives=gather_reps, aperture=20.0,
+                  focus_distance=800.0)
+    with make_caster(scene, "bvh-sah") as bvh:
+        assert bvh.kernel_caster.width == 8
+        packets = render_multidimensional(scene, bvh, lights, trees, **kwargs)
+        at_once = render_multidimensional(scene, _OneRayPackets(bvh), lights, trees, **kwargs)
+    np.testing.assert_array_equal(packets.cut_size, at_once.cut_size)
+    a, b = luminance(packets.image), luminance(at_once.image)
+    assert np.all(np.abs(a - b) <= 0.02 * b + 1e-12)  # within eps, and in fact to rounding
+    np.testing.assert_allclose(packets.image, at_once.image, rtol=1e-9, atol=1e-12)
+    assert np.all(packets.shadow_rays_image <= at_once.shadow_rays_image)
+    if gather_reps == 1:
+        # Every refinement keeps the parent's (g, j) in one child: no ray is ever dropped.
+        assert packets.shadow_rays == at_once.shadow_rays
+    else:
+        assert packets.shadow_rays < at_once.shadow_rays
+    # Shadowed pairs exist, so the packets' answers mattered.
+    unshadowed = render_multidimensional(scene, caster, lights, trees, visibility=False, **kwargs)
+    assert luminance(unshadowed.image).sum() > 1.05 * a.sum()
+
+
 def test_max_cut_counts_pairs_per_gather_point(cornell):
     # render.max_cut is the budget per eye ray for both integrators: a pixel of G gather points may
     # hold max_cut * G pairs.

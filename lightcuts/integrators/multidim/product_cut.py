@@ -8,7 +8,8 @@ its bound is lightcuts.integrators.multidim.pair_bounds'. The cut starts at (gat
 tree's root) and replaces the pair with the largest bound by its two children on the gather or the
 light side (:func:`refine_gather`) until every bound is <= eps times the pixel's total (luminance)
 or the cut holds max_cut pairs. A child pair with the parent's (g, j) reuses its M G V: no new
-shadow ray. docs/math.md, "Multidimensional lightcuts".
+shadow ray. New shadow rays wait in packets of the caster's width (lightcuts.accel.packets) and are
+cast together without changing the cut (docs/math.md, "Multidimensional lightcuts").
 """
 
 from __future__ import annotations
@@ -17,8 +18,9 @@ import numpy as np
 from numba import njit
 
 from lightcuts.integrators.camera import hash_uniform
-from lightcuts.accel.kernel_api import occluded
-from lightcuts.integrators.cut import _light_mg, light_mgv, luminance
+from lightcuts.accel.kernel_api import packet_occluded
+from lightcuts.accel.packets import lane_occluded, packet_get_ray, packet_set_ray
+from lightcuts.integrators.cut import _light_mg, luminance
 from lightcuts.integrators.bounds import DIRECTIONAL
 from lightcuts.integrators.forest import (LF_INDIRECT, LF_NRM, LF_POS, LF_TYPE, NB_HI, NB_I, NB_LEFT, NB_LO, NB_REP, NF_I,
                                      NK_LEFT, NK_REP, NK_RIGHT, REP_BITS)
@@ -54,21 +56,33 @@ def light_representatives(node_f, node_k, r_count, seed, lreps):
 
 
 @njit(cache=True, error_model="numpy")
-def _mgv(gp, gn, gk, gidx, node, g, j, light_f, clamp_d2, ray_offset, visibility, cdata, buf):
-    """M G V (RGB), clamp ratio and shadow rays of light j for gather node ``node`` at its
-    representative point g, per unit weight of the node: a leaf is lightcuts.integrators.cut.light_mgv
-    at its point; an inner node takes G (and the direction w) at g and the weighted mean over its
-    points i of their own materials M_i(w) (normal, mirror direction, rho_d, rho_s, exponent), with
-    one shadow ray from g (or, where g faces away from the light, from the first point that faces
-    it): so a pixel over several materials or orientations is shaded with their mix. A diffuse node
-    whose points share normal and rho_d is its leaf's case (the mean is g's own term)."""
+def _pair_mg(gp, gn, gk, gidx, node, g, j, light_f, clamp_d2, ray_offset, visibility):
+    """M G (RGB) and clamp ratio of light j for gather node ``node`` at its representative point g, per
+    unit weight of the node, and the shadow ray that decides V (not cast here).
+
+    A leaf is lightcuts.integrators.cut's ``M G`` at its point; an inner node takes G (and the
+    direction w) at g and the weighted mean over its points i of their own materials M_i(w) (normal,
+    mirror direction, rho_d, rho_s, exponent), with the shadow ray from g (or, where g faces away
+    from the light, from the first point that faces it): so a pixel over several materials or
+    orientations is shaded with their mix. A diffuse node whose points share normal and rho_d is
+    its leaf's case (the mean is g's own term).
+    Returns ``(m_r, m_g, m_b, ratio, rays, o0, o1, o2, d0, d1, d2, tfar)``: rays = shadow rays
+    counted (0: none needed, V = 1); with rays = 1, V is the answer of the ray from o along the
+    unit d up to tfar when tfar > 0, else 1 if m > 0 (a light closer than ray_offset) and 0 if
+    m = 0 (the ray's origin does not see the light).
+    """
     if gk[node, GK_LEFT] < 0 or (gn[node, GN_MIXED] == 0.0 and gn[node, GN_RS] == 0.0
                                  and gn[node, GN_RS + 1] == 0.0 and gn[node, GN_RS + 2] == 0.0):
-        return light_mgv(j, light_f, gp[g, GP_POS], gp[g, GP_POS + 1], gp[g, GP_POS + 2], gp[g, GP_NRM],
-                         gp[g, GP_NRM + 1], gp[g, GP_NRM + 2], gp[g, GP_REFL], gp[g, GP_REFL + 1],
-                         gp[g, GP_REFL + 2], gp[g, GP_RD], gp[g, GP_RD + 1], gp[g, GP_RD + 2], gp[g, GP_RS],
-                         gp[g, GP_RS + 1], gp[g, GP_RS + 2], gp[g, GP_EXP], clamp_d2, ray_offset, visibility,
-                         cdata, buf)
+        c2 = clamp_d2 if light_f[j, LF_INDIRECT] > 0.0 else 0.0
+        m0, m1, m2, ratio, lit, o0, o1, o2, d0, d1, d2, tfar = _light_mg(
+            np.int64(light_f[j, LF_TYPE]), light_f[j, LF_POS], light_f[j, LF_POS + 1], light_f[j, LF_POS + 2],
+            light_f[j, LF_NRM], light_f[j, LF_NRM + 1], light_f[j, LF_NRM + 2], c2, gp[g, GP_POS],
+            gp[g, GP_POS + 1], gp[g, GP_POS + 2], gp[g, GP_NRM], gp[g, GP_NRM + 1], gp[g, GP_NRM + 2],
+            gp[g, GP_REFL], gp[g, GP_REFL + 1], gp[g, GP_REFL + 2], gp[g, GP_RD], gp[g, GP_RD + 1], gp[g, GP_RD + 2],
+            gp[g, GP_RS], gp[g, GP_RS + 1], gp[g, GP_RS + 2], gp[g, GP_EXP], ray_offset)
+        if not lit:
+            return 0.0, 0.0, 0.0, 1.0, 0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+        return m0, m1, m2, ratio, 1 if visibility else 0, o0, o1, o2, d0, d1, d2, tfar
     typ = np.int64(light_f[j, LF_TYPE])
     c2 = clamp_d2 if light_f[j, LF_INDIRECT] > 0.0 else 0.0
     p0, p1, p2 = light_f[j, LF_POS], light_f[j, LF_POS + 1], light_f[j, LF_POS + 2]
@@ -76,7 +90,7 @@ def _mgv(gp, gn, gk, gidx, node, g, j, light_f, clamp_d2, ray_offset, visibility
     w0, w1, w2, _, geo, ratio = light_geometry(typ, p0, p1, p2, l0, l1, l2, gp[g, GP_POS], gp[g, GP_POS + 1],
                                                gp[g, GP_POS + 2], c2)
     if geo <= 0.0:
-        return 0.0, 0.0, 0.0, 1.0, 0
+        return 0.0, 0.0, 0.0, 1.0, 0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     m0 = 0.0
     m1 = 0.0
     m2 = 0.0
@@ -96,20 +110,20 @@ def _mgv(gp, gn, gk, gidx, node, g, j, light_f, clamp_d2, ray_offset, visibility
         if s < 0 and (a0 > 0.0 or a1 > 0.0 or a2 > 0.0):
             s = i
     if s < 0 or not (m0 > 0.0 or m1 > 0.0 or m2 > 0.0):
-        return 0.0, 0.0, 0.0, 1.0, 0
+        return 0.0, 0.0, 0.0, 1.0, 0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     f = geo / weight
     m0, m1, m2 = m0 * f, m1 * f, m2 * f
     if not visibility:
-        return m0, m1, m2, ratio, 0
-    # The shadow ray of light j from point s, as light_mgv casts it (a unit diffuse material: lit
-    # wherever s faces the light).
+        return m0, m1, m2, ratio, 0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    # The shadow ray of light j from point s, as the leaf's (a unit diffuse material: lit wherever s
+    # faces the light).
     _, _, _, _, lit, o0, o1, o2, d0, d1, d2, tfar = _light_mg(
         typ, p0, p1, p2, l0, l1, l2, c2, gp[s, GP_POS], gp[s, GP_POS + 1], gp[s, GP_POS + 2], gp[s, GP_NRM],
         gp[s, GP_NRM + 1], gp[s, GP_NRM + 2], gp[s, GP_REFL], gp[s, GP_REFL + 1], gp[s, GP_REFL + 2], 1.0, 1.0,
         1.0, 0.0, 0.0, 0.0, 0.0, ray_offset)
-    if not lit or (tfar > 0.0 and occluded(cdata, buf, o0, o1, o2, d0, d1, d2, 0.0, tfar)):
-        return 0.0, 0.0, 0.0, 1.0, 1
-    return m0, m1, m2, ratio, 1
+    if not lit:
+        return 0.0, 0.0, 0.0, 1.0, 1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    return m0, m1, m2, ratio, 1, o0, o1, o2, d0, d1, d2, tfar
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
@@ -137,23 +151,57 @@ def refine_gather(gn, gk, g, node_b, node_bi, k):
 
 
 @njit(cache=True, error_model="numpy")
+def _flush(cdata, buf, width, pk, lanes, lane_slot, gn, slot_g, slot_l, slot_mgv, slot_ratio, slot_vis, node_b,
+           t0, t1, t2):
+    """Cast the waiting shadow rays (lanes 0..lanes-1 of the packet pk, lane r for the pair in slot
+    lane_slot[r]) and zero the estimate of each pair whose ray is occluded. Returns the running
+    total t less the estimates so removed."""
+    packet_occluded(cdata, buf, pk, width, lanes)
+    for r in range(lanes):
+        if lane_occluded(pk, width, r):
+            q = lane_slot[r]
+            k = slot_l[q]
+            w = gn[slot_g[q], GN_W]
+            t0 -= w * slot_mgv[q, 0] * node_b[k, NB_I]
+            t1 -= w * slot_mgv[q, 1] * node_b[k, NB_I + 1]
+            t2 -= w * slot_mgv[q, 2] * node_b[k, NB_I + 2]
+            slot_mgv[q, 0] = 0.0
+            slot_mgv[q, 1] = 0.0
+            slot_mgv[q, 2] = 0.0
+            slot_ratio[q] = 1.0
+            slot_vis[q] = False
+    return t0, t1, t2
+
+
+@njit(cache=True, error_model="numpy")
 def product_cut(gp, gn, gk, gidx, greps, groot, node_b, node_bi, roots, light_f, lreps, eps, max_cut, clamp_d2,
-                ray_offset, visibility, cdata, buf, heap, slot_g, slot_l, slot_rep, slot_mgv, slot_ratio, slot_vis):
+                ray_offset, visibility, cdata, buf, width, pk, lane_slot, heap, slot_g, slot_l, slot_rep, slot_mgv,
+                slot_ratio, slot_vis):
     """Reflected radiance of the pixel whose gather tree is (gp, gn, gk, groot), gidx the points in
     the tree's order (lightcuts.integrators.multidim.gather_tree), greps its representatives (R_G columns).
 
     node_b, node_bi, roots, light_f : the forest (lightcuts.integrators.forest); lreps : (K, R)
     :func:`light_representatives`; eps, max_cut : the stop test; clamp_d2, ray_offset, visibility,
-    cdata, buf : as lightcuts.integrators.cut.light_mgv; heap (uint64), slot_g, slot_l, slot_rep (int64,
-    the pair's light representative), slot_mgv (cap, 3), slot_ratio, slot_vis (bool: the
-    representatives' shadow ray is unoccluded) : scratch for max(max_cut, roots) + 2 pairs.
+    cdata, buf : as lightcuts.integrators.cut.light_mgv; width, pk, lane_slot ((width,) int64) : the
+    caster's packet width, the packet (lightcuts.accel.packets.new_ray_packet) and the slot of each
+    waiting shadow ray; heap (uint64), slot_g, slot_l, slot_rep (int64, the pair's light
+    representative), slot_mgv (cap, 3), slot_ratio, slot_vis (bool: the representatives' shadow ray
+    is unoccluded, or still waiting) : scratch for max(max_cut, roots) + 2 pairs.
     Returns ``(L_r, L_g, L_b, pairs, shadow_rays, clamp_lost)`` like lightcuts.integrators.cut.lightcut,
     pairs = pairs in the final cut.
+
+    Shadow rays wait in the packet as the lightcut's do (docs/math.md, "Deferred visibility"): a
+    waiting ray counts as visible, so the running total is the upper end of the true one; a top
+    bound above eps times it is refined without the rays' answers, and a top bound at or below it
+    casts them and takes the test again. A waiting ray follows its pair's (g, j) into the child that
+    keeps it, and leaves the packet uncast when neither child does.
     """
     r_count = lreps.shape[1]
     g_count = greps.shape[1]
+    # int64 zeros, not literals (one specialisation of the helpers they reach).
     n_slots = np.int64(0)
     size = np.int64(0)
+    lanes = np.int64(0)
     rays = 0
     t0 = 0.0
     t1 = 0.0
@@ -162,76 +210,136 @@ def product_cut(gp, gn, gk, gidx, greps, groot, node_b, node_bi, roots, light_f,
         k = roots[t]
         grep = greps[groot, k % g_count]
         j = lreps[k, grep % r_count]
-        m0, m1, m2, ratio, nr = _mgv(gp, gn, gk, gidx, groot, grep, j, light_f, clamp_d2, ray_offset, visibility,
-                                     cdata, buf)
+        m0, m1, m2, ratio, nr, o0, o1, o2, d0, d1, d2, tfar = _pair_mg(gp, gn, gk, gidx, groot, grep, j, light_f,
+                                                                       clamp_d2, ray_offset, visibility)
         rays += nr
         slot_vis[n_slots] = nr == 0 or m0 > 0.0 or m1 > 0.0 or m2 > 0.0
-        w = _weight(gp, gn, gk, groot)
+        w = gn[groot, GN_W]
         slot_g[n_slots], slot_l[n_slots], slot_rep[n_slots] = groot, k, j
         slot_mgv[n_slots, 0], slot_mgv[n_slots, 1], slot_mgv[n_slots, 2] = m0, m1, m2
         slot_ratio[n_slots] = ratio
         t0 += w * m0 * node_b[k, NB_I]
         t1 += w * m1 * node_b[k, NB_I + 1]
         t2 += w * m2 * node_b[k, NB_I + 2]
+        if nr > 0 and tfar > 0.0:
+            packet_set_ray(pk, width, lanes, o0, o1, o2, d0, d1, d2, 0.0, tfar)
+            lane_slot[lanes] = n_slots
+            lanes += 1
+            if lanes == width:
+                t0, t1, t2 = _flush(cdata, buf, width, pk, lanes, lane_slot, gn, slot_g, slot_l, slot_mgv,
+                                    slot_ratio, slot_vis, node_b, t0, t1, t2)
+                lanes = 0
         b0, b1, b2 = pair_bound(gp, gn, gk, groot, node_b, node_bi, k, node_bi[k, NB_LEFT] < 0, clamp_d2)
         b = luminance(b0, b1, b2)
         if b > 0.0:
             size = heap_push(heap, size, heap_entry(b, n_slots))
-            heap[size] = 0
         n_slots += 1
+    heap[size] = 0
     while size > 0 and n_slots < max_cut:
         if entry_bound(heap[0]) <= eps * luminance(t0, t1, t2):
-            break
+            if lanes == 0:
+                break
+            t0, t1, t2 = _flush(cdata, buf, width, pk, lanes, lane_slot, gn, slot_g, slot_l, slot_mgv, slot_ratio,
+                                slot_vis, node_b, t0, t1, t2)
+            lanes = 0
+            continue
         s = np.int64(heap[0] & SLOT_MASK)
-        size -= 1
-        key = heap[size]
-        heap[size] = 0
-        if size > 0:
-            sift_down(heap, size, key)
         g, k, pj = slot_g[s], slot_l[s], slot_rep[s]
         pg = greps[g, k % g_count]
-        w = _weight(gp, gn, gk, g)
+        split_g = refine_gather(gn, gk, g, node_b, node_bi, k)
+        # The children (left in s's slot, right in a new one), their bounds and which of them keeps
+        # s's representative pair (g, j) and so its shadow ray (-1: neither).
+        keep = np.int64(-1)
+        bl = 0.0
+        br = 0.0
+        for side in range(2):
+            cg = gk[g, GK_LEFT + side] if split_g else g
+            ck = k if split_g else np.int64(node_bi[k, NB_LEFT]) + side
+            rg = greps[cg, ck % g_count]
+            if rg == pg and lreps[ck, rg % r_count] == pj:
+                keep = side
+            b0, b1, b2 = pair_bound(gp, gn, gk, cg, node_b, node_bi, ck, node_bi[ck, NB_LEFT] < 0, clamp_d2)
+            if side == 0:
+                bl = luminance(b0, b1, b2)
+            else:
+                br = luminance(b0, b1, b2)
+        # The heap first (it needs the bounds only): the left child (if it has a bound) takes the
+        # top, then the right.
+        if bl > 0.0:
+            sift_down(heap, size, heap_entry(bl, s))
+            if br > 0.0:
+                size = heap_push(heap, size, heap_entry(br, n_slots))
+                heap[size] = 0
+        elif br > 0.0:
+            sift_down(heap, size, heap_entry(br, n_slots))
+        else:  # no child entered the heap: the last entry fills the top
+            size -= 1
+            key = heap[size]
+            heap[size] = 0
+            if size > 0:
+                sift_down(heap, size, key)
+        # s's waiting ray, if any, moves to the child that keeps (g, j), or leaves the packet uncast
+        # (the last lane takes its place).
+        for r in range(lanes):
+            if lane_slot[r] == s:
+                if keep >= 0:
+                    lane_slot[r] = s if keep == 0 else n_slots
+                else:
+                    lanes -= 1
+                    rays -= 1
+                    if r < lanes:
+                        q0, q1, q2, e0, e1, e2, tn, tf = packet_get_ray(pk, width, lanes)
+                        packet_set_ray(pk, width, r, q0, q1, q2, e0, e1, e2, tn, tf)
+                        lane_slot[r] = lane_slot[lanes]
+                break
+        w = gn[g, GN_W]
         t0 -= w * slot_mgv[s, 0] * node_b[k, NB_I]
         t1 -= w * slot_mgv[s, 1] * node_b[k, NB_I + 1]
         t2 -= w * slot_mgv[s, 2] * node_b[k, NB_I + 2]
         pm0, pm1, pm2, pratio, pvis = slot_mgv[s, 0], slot_mgv[s, 1], slot_mgv[s, 2], slot_ratio[s], slot_vis[s]
-        split_g = refine_gather(gn, gk, g, node_b, node_bi, k)
-        for side in range(2):
-            if split_g:
-                cg, ck = gk[g, GK_LEFT + side], k
-            else:
-                cg, ck = g, np.int64(node_bi[k, NB_LEFT]) + side
+        # The child that keeps s's ray first: its slot is written before a full packet is cast.
+        for step in range(2):
+            side = step if keep != 1 else 1 - step
+            cg = gk[g, GK_LEFT + side] if split_g else g
+            ck = k if split_g else np.int64(node_bi[k, NB_LEFT]) + side
             cs = s if side == 0 else n_slots
             rg = greps[cg, ck % g_count]
             j = lreps[ck, rg % r_count]
-            if rg == pg and j == pj and not split_g:
-                m0, m1, m2, ratio, vis = pm0, pm1, pm2, pratio, pvis
-            elif rg == pg and j == pj:
-                # The parent's shadow ray, the child's own points' materials.
-                m0, m1, m2, ratio, nr = _mgv(gp, gn, gk, gidx, cg, rg, j, light_f, clamp_d2, ray_offset, False,
-                                             cdata, buf)
-                vis = pvis
-                if not vis:
-                    m0, m1, m2 = 0.0, 0.0, 0.0
+            vis = pvis
+            nr = 0
+            o0, o1, o2, d0, d1, d2, tfar = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+            if side == keep and not split_g:
+                m0, m1, m2, ratio = pm0, pm1, pm2, pratio
             else:
-                m0, m1, m2, ratio, nr = _mgv(gp, gn, gk, gidx, cg, rg, j, light_f, clamp_d2, ray_offset, visibility,
-                                             cdata, buf)
-                rays += nr
-                vis = nr == 0 or m0 > 0.0 or m1 > 0.0 or m2 > 0.0
+                # The kept pair on the gather side: the parent's shadow ray, the child's own points' materials.
+                m0, m1, m2, ratio, nr, o0, o1, o2, d0, d1, d2, tfar = _pair_mg(
+                    gp, gn, gk, gidx, cg, rg, j, light_f, clamp_d2, ray_offset, visibility and side != keep)
+                if side == keep:
+                    if not vis:
+                        m0, m1, m2 = 0.0, 0.0, 0.0
+                else:
+                    rays += nr
+                    vis = nr == 0 or m0 > 0.0 or m1 > 0.0 or m2 > 0.0
             slot_vis[cs] = vis
-            w = _weight(gp, gn, gk, cg)
+            w = gn[cg, GN_W]
             slot_g[cs], slot_l[cs], slot_rep[cs] = cg, ck, j
             slot_mgv[cs, 0], slot_mgv[cs, 1], slot_mgv[cs, 2] = m0, m1, m2
             slot_ratio[cs] = ratio
             t0 += w * m0 * node_b[ck, NB_I]
             t1 += w * m1 * node_b[ck, NB_I + 1]
             t2 += w * m2 * node_b[ck, NB_I + 2]
-            b0, b1, b2 = pair_bound(gp, gn, gk, cg, node_b, node_bi, ck, node_bi[ck, NB_LEFT] < 0, clamp_d2)
-            b = luminance(b0, b1, b2)
-            if b > 0.0:
-                size = heap_push(heap, size, heap_entry(b, cs))
-                heap[size] = 0
+            if side != keep and nr > 0 and tfar > 0.0:
+                packet_set_ray(pk, width, lanes, o0, o1, o2, d0, d1, d2, 0.0, tfar)
+                lane_slot[lanes] = cs
+                lanes += 1
+                if lanes == width:
+                    t0, t1, t2 = _flush(cdata, buf, width, pk, lanes, lane_slot, gn, slot_g, slot_l, slot_mgv,
+                                        slot_ratio, slot_vis, node_b, t0, t1, t2)
+                    lanes = 0
         n_slots += 1
+    if lanes > 0:
+        _flush(cdata, buf, width, pk, lanes, lane_slot, gn, slot_g, slot_l, slot_mgv, slot_ratio, slot_vis, node_b,
+               t0, t1, t2)
     # The final sum again, from the cut itself: the running total drifts by cancellation.
     t0 = 0.0
     t1 = 0.0
@@ -239,7 +347,7 @@ def product_cut(gp, gn, gk, gidx, greps, groot, node_b, node_bi, roots, light_f,
     lost = 0.0
     for s in range(n_slots):
         k = slot_l[s]
-        w = _weight(gp, gn, gk, slot_g[s])
+        w = gn[slot_g[s], GN_W]
         e0 = w * slot_mgv[s, 0] * node_b[k, NB_I]
         e1 = w * slot_mgv[s, 1] * node_b[k, NB_I + 1]
         e2 = w * slot_mgv[s, 2] * node_b[k, NB_I + 2]
@@ -248,12 +356,6 @@ def product_cut(gp, gn, gk, gidx, greps, groot, node_b, node_bi, roots, light_f,
         t2 += e2
         lost += (slot_ratio[s] - 1.0) * luminance(e0, e1, e2)
     return t0, t1, t2, n_slots, rays, lost
-
-
-@njit(cache=True, error_model="numpy", forceinline=True)
-def _weight(gp, gn, gk, g):
-    """Summed weight W_G of gather node g (a leaf's row in gn holds its point's weight too)."""
-    return gn[g, GN_W]
 
 
 @njit(cache=True, error_model="numpy")

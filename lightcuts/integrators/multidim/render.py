@@ -17,6 +17,7 @@ import numpy as np
 from numba import njit
 
 from lightcuts.accel.kernel_api import new_scratch
+from lightcuts.accel.packets import new_ray_packet
 from lightcuts.errors import LightcutsError
 from lightcuts.parallel import next_task
 from lightcuts.registry import Param, declare
@@ -34,16 +35,19 @@ DEFAULT_REPRESENTATIVES = 4
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _render_band(cdata, cam, seed, spp, sx, sy, aperture, focus, x0, x1, y0, y1, face_normal, albedo, tex, specular,
-                 exponent, emission, node_b, node_bi, roots, light_f, light_i, lreps, g_count, env_pixels, env_rotation,
-                 env_scale, eps, max_cut, clamp_d2, ray_offset, visibility, reference, pixels, out_rgb, out_cut,
+def _render_band(cdata, width, cam, seed, spp, sx, sy, aperture, focus, x0, x1, y0, y1, face_normal, albedo, tex,
+                 specular, exponent, emission, node_b, node_bi, roots, light_f, light_i, lreps, g_count, env_pixels,
+                 env_rotation, env_scale, eps, max_cut, clamp_d2, ray_offset, visibility, reference, pixels, out_rgb, out_cut,
                  out_rays, out_lost, tasks):
     """Pixels [x0, x1) x [y0, y1) (or the listed ``pixels``) into the band's rows, as every band
-    kernel (lightcuts.integrators.driver); out_cut : pairs in the cut per pixel."""
+    kernel (lightcuts.integrators.driver); cdata, width : the caster's data and packet width
+    (lightcuts.accel.base.KernelCaster); out_cut : pairs in the cut per pixel."""
     cols = x1 - x0
     n = (y1 - y0) * cols
     cap = max(max_cut, roots.shape[0]) + 2
     buf = new_scratch(cdata)
+    pk = new_ray_packet()
+    lane_slot = np.empty(width, np.int64)
     gp = np.empty((spp, GP_WIDTH))
     gn = np.empty((2 * spp, GN_WIDTH))
     gk = np.empty((2 * spp, GK_WIDTH), np.int64)
@@ -57,7 +61,7 @@ def _render_band(cdata, cam, seed, spp, sx, sy, aperture, focus, x0, x1, y0, y1,
     slot_mgv = np.empty((cap, 3))
     slot_ratio = np.empty(cap)
     slot_vis = np.empty(cap, np.bool_)
-    width = np.int64(cam[CAM_WIDTH])
+    image_width = np.int64(cam[CAM_WIDTH])
     while True:
         c = next_task(tasks)
         if c * CHUNK >= n:
@@ -78,12 +82,12 @@ def _render_band(cdata, cam, seed, spp, sx, sy, aperture, focus, x0, x1, y0, y1,
                     r0, r1, r2, pairs, rays, lost = all_pairs(gp, ng, light_f, light_i, clamp_d2, ray_offset,
                                                               visibility, cdata, buf)
                 else:
-                    root = build_gather_tree(gp, ng, gn, gk, idx, stack, seed, np.int64(py) * width + px)
-                    gather_representatives(gn, gk, ng, seed, np.int64(py) * width + px, greps)
+                    root = build_gather_tree(gp, ng, gn, gk, idx, stack, seed, np.int64(py) * image_width + px)
+                    gather_representatives(gn, gk, ng, seed, np.int64(py) * image_width + px, greps)
                     r0, r1, r2, pairs, rays, lost = product_cut(
                         gp, gn, gk, idx, greps, root, node_b, node_bi, roots, light_f, lreps, eps, max_cut, clamp_d2,
-                        ray_offset, visibility, cdata, buf, heap, slot_g, slot_l, slot_rep, slot_mgv, slot_ratio,
-                        slot_vis)
+                        ray_offset, visibility, cdata, buf, width, pk, lane_slot, heap, slot_g, slot_l, slot_rep,
+                        slot_mgv, slot_ratio, slot_vis)
                 a0 += r0
                 a1 += r1
                 a2 += r2
@@ -156,7 +160,7 @@ class Multidimensional(CutIntegrator):
         lreps = np.zeros((len(fo.node_f), self.representatives), np.int64)
         if len(fo.node_f):
             light_representatives(fo.node_f, fo.node_k, self.representatives, f.seed, lreps)
-        head = (f.caster.data, f.cam, f.seed, spp, f.sx, f.sy, self.aperture, focus)
+        head = (*f.caster, f.cam, f.seed, spp, f.sx, f.sy, self.aperture, focus)
         tail = (*f.surfaces, fo.node_b, fo.node_bi, fo.roots, fo.light_f, fo.light_i, lreps,
                 self.gather_representatives, *f.env, self.eps, pair_budget, self.clamp_d2(f.scene), f.ray_offset,
                 self.visibility, self.brute_force)
