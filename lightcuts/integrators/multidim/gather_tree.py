@@ -184,21 +184,42 @@ def build_gather_tree(gp, n, gn, gk, idx, stack, seed, pixel):
 
 
 @njit(cache=True, error_model="numpy")
-def gather_representatives(gn, gk, n, seed, pixel, greps):
-    """greps ((>= 2n - 1, R) int64): R representative gather points per node of the tree over n
-    points, as light_representatives draws the lights': column 0 is the tree's own (GK_REP), column
-    r > 0 is drawn bottom up (the left child's column-r representative with probability W_left / W,
-    seeded by pixel, node and column), so a parent's is always one of its children's."""
+def gather_representatives(gn, gk, idx, n, seed, pixel, greps):
+    """greps ((>= 2n - 1, R) int64): R representative gather points (columns) per node of the tree
+    over n points, stratified and nested (docs/math.md, "Gather representatives").
+
+    The root's columns go round its points in the tree's order (``idx``, as returned by
+    :func:`build_gather_tree`) from its own representative (GK_REP, column 0), so each point holds
+    R / n of them (one each when R = n). A child keeps every column whose point it holds (so a
+    parent's representative is always one of its children's) and gives each other column to its
+    own points in turn, from a point drawn by (seed, pixel, node): every point of a node holds about
+    R / (its points) of the node's columns, and each of them at least one when R >= n.
+    """
     r_count = greps.shape[1]
     for i in range(n):
         for r in range(r_count):
             greps[i, r] = i
     if n == 1:
         return
-    for k in range(2 * n - 2, n - 1, -1):
-        a, b = gk[k, GK_LEFT], gk[k, GK_RIGHT]
-        wa, wb = gn[a, GN_W], gn[b, GN_W]
-        greps[k, 0] = gk[k, GK_REP]
-        for r in range(1, r_count):
-            u = hash_uniform(seed + REP_SEED, pixel, k, r)
-            greps[k, r] = greps[a, r] if u * (wa + wb) < wa else greps[b, r]
+    pos = np.empty(n, np.int64)
+    for t in range(n):
+        pos[idx[t]] = t
+    p0 = pos[gk[n, GK_REP]]
+    for r in range(r_count):
+        greps[n, r] = idx[(p0 + r) % n]
+    # Parents before children: an inner child has a larger id than its parent.
+    for k in range(n, 2 * n - 1):
+        for side in range(2):
+            c = gk[k, GK_LEFT + side]
+            if c < n:
+                continue
+            first, last = gk[c, GK_FIRST], gk[c, GK_LAST]
+            count = last - first
+            t = np.int64(hash_uniform(seed + REP_SEED, pixel, c, 0) * count)
+            for r in range(r_count):
+                p = greps[k, r]
+                if first <= pos[p] < last:
+                    greps[c, r] = p
+                else:
+                    greps[c, r] = idx[first + t % count]
+                    t += 1

@@ -19,7 +19,7 @@ from numba import njit
 
 from lightcuts.integrators.camera import hash_uniform
 from lightcuts.accel.kernel_api import packet_occluded
-from lightcuts.accel.packets import lane_occluded, packet_get_ray, packet_set_ray
+from lightcuts.accel.packets import lane_occluded, packet_set_ray
 from lightcuts.integrators.cut import _light_mg, luminance
 from lightcuts.integrators.bounds import DIRECTIONAL
 from lightcuts.integrators.forest import (LF_INDIRECT, LF_NRM, LF_POS, LF_TYPE, NB_HI, NB_I, NB_LEFT, NB_LO, NB_REP, NF_I,
@@ -28,6 +28,8 @@ from lightcuts.integrators.heap import SLOT_MASK, entry_bound, heap_entry, heap_
 from lightcuts.integrators.multidim.gather import GP_EXP, GP_NRM, GP_POS, GP_RD, GP_REFL, GP_RS, GP_W
 from lightcuts.integrators.multidim.gather_tree import (GK_FIRST, GK_LAST, GK_LEFT, GN_ANG, GN_HI, GN_LO, GN_MIXED, GN_RS,
                                                    GN_W)
+from lightcuts.integrators.multidim.gather_check import (GC_STATE, SK_COL, SK_DEPTH, SK_FORCE, SK_G, SK_L, SK_REP,
+                                                          check_gather_nodes)
 from lightcuts.integrators.multidim.pair_bounds import pair_bound
 from lightcuts.integrators.reference import all_lights
 from lightcuts.integrators.shading import light_geometry, material_term
@@ -151,8 +153,7 @@ def refine_gather(gn, gk, g, node_b, node_bi, k):
 
 
 @njit(cache=True, error_model="numpy")
-def _flush(cdata, buf, width, pk, lanes, lane_slot, gn, slot_g, slot_l, slot_mgv, slot_ratio, slot_vis, node_b,
-           t0, t1, t2):
+def _flush(cdata, buf, width, pk, lanes, lane_slot, gn, slot_k, slot_mgv, slot_ratio, slot_vis, node_b, t0, t1, t2):
     """Cast the waiting shadow rays (lanes 0..lanes-1 of the packet pk, lane r for the pair in slot
     lane_slot[r]) and zero the estimate of each pair whose ray is occluded. Returns the running
     total t less the estimates so removed."""
@@ -160,8 +161,8 @@ def _flush(cdata, buf, width, pk, lanes, lane_slot, gn, slot_g, slot_l, slot_mgv
     for r in range(lanes):
         if lane_occluded(pk, width, r):
             q = lane_slot[r]
-            k = slot_l[q]
-            w = gn[slot_g[q], GN_W]
+            k = slot_k[q, SK_L]
+            w = gn[slot_k[q, SK_G], GN_W]
             t0 -= w * slot_mgv[q, 0] * node_b[k, NB_I]
             t1 -= w * slot_mgv[q, 1] * node_b[k, NB_I + 1]
             t2 -= w * slot_mgv[q, 2] * node_b[k, NB_I + 2]
@@ -173,10 +174,25 @@ def _flush(cdata, buf, width, pk, lanes, lane_slot, gn, slot_g, slot_l, slot_mgv
     return t0, t1, t2
 
 
+@njit(cache=True, error_model="numpy", forceinline=True)
+def sibling_column(col, depth, g_count):
+    """The gather-representative column of the light-side child that does not keep its parent's
+    representative light: the parent's column ``col`` with bit ``depth mod b`` flipped (2^b the
+    largest power of two <= g_count; the column itself if that is out of range), so the pairs of a
+    subtree refined b levels below a pair use every column of [0, 2^b) once."""
+    bits = 0
+    while (2 << bits) <= g_count:
+        bits += 1
+    if bits == 0:
+        return col
+    c = col ^ (np.int64(1) << (depth % bits))
+    return c if c < g_count else col
+
+
 @njit(cache=True, error_model="numpy")
 def product_cut(gp, gn, gk, gidx, greps, groot, node_b, node_bi, roots, light_f, lreps, eps, max_cut, clamp_d2,
-                ray_offset, visibility, cdata, buf, width, pk, lane_slot, heap, slot_g, slot_l, slot_rep, slot_mgv,
-                slot_ratio, slot_vis):
+                ray_offset, visibility, cdata, buf, width, pk, lane_slot, heap, slot_k, slot_mgv, slot_ratio, slot_vis,
+                gcheck):
     """Reflected radiance of the pixel whose gather tree is (gp, gn, gk, groot), gidx the points in
     the tree's order (lightcuts.integrators.multidim.gather_tree), greps its representatives (R_G columns).
 
@@ -184,9 +200,10 @@ def product_cut(gp, gn, gk, gidx, greps, groot, node_b, node_bi, roots, light_f,
     :func:`light_representatives`; eps, max_cut : the stop test; clamp_d2, ray_offset, visibility,
     cdata, buf : as lightcuts.integrators.cut.light_mgv; width, pk, lane_slot ((width,) int64) : the
     caster's packet width, the packet (lightcuts.accel.packets.new_ray_packet) and the slot of each
-    waiting shadow ray; heap (uint64), slot_g, slot_l, slot_rep (int64, the pair's light
-    representative), slot_mgv (cap, 3), slot_ratio, slot_vis (bool: the representatives' shadow ray
-    is unoccluded, or still waiting) : scratch for max(max_cut, roots) + 2 pairs.
+    waiting shadow ray; heap (uint64), slot_k ((cap, SK_WIDTH) int64: gather node, light node, light
+    representative, column, depth, forced: lightcuts.integrators.multidim.gather_check), slot_mgv
+    (cap, 3), slot_ratio, slot_vis (bool: the pair's shadow ray is unoccluded, or still waiting) :
+    scratch for max(max_cut, roots) + 2 pairs; gcheck : the gather nodes' check scratch (gather_check).
     Returns ``(L_r, L_g, L_b, pairs, shadow_rays, clamp_lost)`` like lightcuts.integrators.cut.lightcut,
     pairs = pairs in the final cut.
 
@@ -194,10 +211,15 @@ def product_cut(gp, gn, gk, gidx, greps, groot, node_b, node_bi, roots, light_f,
     waiting ray counts as visible, so the running total is the upper end of the true one; a top
     bound above eps times it is refined without the rays' answers, and a top bound at or below it
     casts them and takes the test again. A waiting ray follows its pair's (g, j) into the child that
-    keeps it, and leaves the packet uncast when neither child does.
+    keeps it. When the bounds are met, the
+    gather nodes of the cut are checked (gather_check.check_gather_nodes) and the pairs of those
+    that disagree refined on the gather side, until none is found or the cut is full.
     """
     r_count = lreps.shape[1]
     g_count = greps.shape[1]
+    n = groot if groot > 0 else 1
+    for g in range(n, 2 * n - 1):
+        gcheck[g, GC_STATE] = 0
     # int64 zeros, not literals (one specialisation of the helpers they reach).
     n_slots = np.int64(0)
     size = np.int64(0)
@@ -208,14 +230,16 @@ def product_cut(gp, gn, gk, gidx, greps, groot, node_b, node_bi, roots, light_f,
     t2 = 0.0
     for t in range(roots.shape[0]):
         k = roots[t]
-        grep = greps[groot, k % g_count]
+        col = t % g_count
+        grep = greps[groot, col]
         j = lreps[k, grep % r_count]
         m0, m1, m2, ratio, nr, o0, o1, o2, d0, d1, d2, tfar = _pair_mg(gp, gn, gk, gidx, groot, grep, j, light_f,
                                                                        clamp_d2, ray_offset, visibility)
         rays += nr
         slot_vis[n_slots] = nr == 0 or m0 > 0.0 or m1 > 0.0 or m2 > 0.0
         w = gn[groot, GN_W]
-        slot_g[n_slots], slot_l[n_slots], slot_rep[n_slots] = groot, k, j
+        slot_k[n_slots, SK_G], slot_k[n_slots, SK_L], slot_k[n_slots, SK_REP] = groot, k, j
+        slot_k[n_slots, SK_COL], slot_k[n_slots, SK_DEPTH], slot_k[n_slots, SK_FORCE] = col, 0, 0
         slot_mgv[n_slots, 0], slot_mgv[n_slots, 1], slot_mgv[n_slots, 2] = m0, m1, m2
         slot_ratio[n_slots] = ratio
         t0 += w * m0 * node_b[k, NB_I]
@@ -226,8 +250,8 @@ def product_cut(gp, gn, gk, gidx, greps, groot, node_b, node_bi, roots, light_f,
             lane_slot[lanes] = n_slots
             lanes += 1
             if lanes == width:
-                t0, t1, t2 = _flush(cdata, buf, width, pk, lanes, lane_slot, gn, slot_g, slot_l, slot_mgv,
-                                    slot_ratio, slot_vis, node_b, t0, t1, t2)
+                t0, t1, t2 = _flush(cdata, buf, width, pk, lanes, lane_slot, gn, slot_k, slot_mgv, slot_ratio,
+                                    slot_vis, node_b, t0, t1, t2)
                 lanes = 0
         b0, b1, b2 = pair_bound(gp, gn, gk, groot, node_b, node_bi, k, node_bi[k, NB_LEFT] < 0, clamp_d2)
         b = luminance(b0, b1, b2)
@@ -235,119 +259,131 @@ def product_cut(gp, gn, gk, gidx, greps, groot, node_b, node_bi, roots, light_f,
             size = heap_push(heap, size, heap_entry(b, n_slots))
         n_slots += 1
     heap[size] = 0
-    while size > 0 and n_slots < max_cut:
-        if entry_bound(heap[0]) <= eps * luminance(t0, t1, t2):
-            if lanes == 0:
-                break
-            t0, t1, t2 = _flush(cdata, buf, width, pk, lanes, lane_slot, gn, slot_g, slot_l, slot_mgv, slot_ratio,
-                                slot_vis, node_b, t0, t1, t2)
-            lanes = 0
-            continue
-        s = np.int64(heap[0] & SLOT_MASK)
-        g, k, pj = slot_g[s], slot_l[s], slot_rep[s]
-        pg = greps[g, k % g_count]
-        split_g = refine_gather(gn, gk, g, node_b, node_bi, k)
-        # The children (left in s's slot, right in a new one), their bounds and which of them keeps
-        # s's representative pair (g, j) and so its shadow ray (-1: neither).
-        keep = np.int64(-1)
-        bl = 0.0
-        br = 0.0
-        for side in range(2):
-            cg = gk[g, GK_LEFT + side] if split_g else g
-            ck = k if split_g else np.int64(node_bi[k, NB_LEFT]) + side
-            rg = greps[cg, ck % g_count]
-            if rg == pg and lreps[ck, rg % r_count] == pj:
-                keep = side
-            b0, b1, b2 = pair_bound(gp, gn, gk, cg, node_b, node_bi, ck, node_bi[ck, NB_LEFT] < 0, clamp_d2)
-            if side == 0:
-                bl = luminance(b0, b1, b2)
-            else:
-                br = luminance(b0, b1, b2)
-        # The heap first (it needs the bounds only): the left child (if it has a bound) takes the
-        # top, then the right.
-        if bl > 0.0:
-            sift_down(heap, size, heap_entry(bl, s))
-            if br > 0.0:
-                size = heap_push(heap, size, heap_entry(br, n_slots))
+    while True:
+        while size > 0 and n_slots < max_cut:
+            if entry_bound(heap[0]) <= eps * luminance(t0, t1, t2):
+                if lanes == 0:
+                    break
+                t0, t1, t2 = _flush(cdata, buf, width, pk, lanes, lane_slot, gn, slot_k, slot_mgv, slot_ratio,
+                                    slot_vis, node_b, t0, t1, t2)
+                lanes = 0
+                continue
+            s = np.int64(heap[0] & SLOT_MASK)
+            g, k, pj = slot_k[s, SK_G], slot_k[s, SK_L], slot_k[s, SK_REP]
+            pcol, depth = slot_k[s, SK_COL], slot_k[s, SK_DEPTH]
+            pg = greps[g, pcol]
+            split_g = slot_k[s, SK_FORCE] == 1 or refine_gather(gn, gk, g, node_b, node_bi, k)
+            # The children (left in s's slot, right in a new one), their bounds and which of them keeps
+            # s's representative pair (g, j) and so its shadow ray: on the gather side the one that
+            # holds g, on the light side the one that holds j (one always does: both kinds of
+            # representatives nest, and the column stays).
+            keep = np.int64(0)
+            bl = 0.0
+            br = 0.0
+            for side in range(2):
+                cg = gk[g, GK_LEFT + side] if split_g else g
+                ck = k if split_g else np.int64(node_bi[k, NB_LEFT]) + side
+                rg = greps[cg, pcol]
+                if rg == pg and lreps[ck, rg % r_count] == pj:
+                    keep = side
+                b0, b1, b2 = pair_bound(gp, gn, gk, cg, node_b, node_bi, ck, node_bi[ck, NB_LEFT] < 0, clamp_d2)
+                b = luminance(b0, b1, b2)
+                if b > 0.0 and cg >= n and gcheck[cg, GC_STATE] == 2:
+                    b = np.inf  # a gather node found to disagree: refined on the gather side first
+                if side == 0:
+                    bl = b
+                else:
+                    br = b
+            # The heap first (it needs the bounds only): the left child (if it has a bound) takes the
+            # top, then the right.
+            if bl > 0.0:
+                sift_down(heap, size, heap_entry(bl, s))
+                if br > 0.0:
+                    size = heap_push(heap, size, heap_entry(br, n_slots))
+                    heap[size] = 0
+            elif br > 0.0:
+                sift_down(heap, size, heap_entry(br, n_slots))
+            else:  # no child entered the heap: the last entry fills the top
+                size -= 1
+                key = heap[size]
                 heap[size] = 0
-        elif br > 0.0:
-            sift_down(heap, size, heap_entry(br, n_slots))
-        else:  # no child entered the heap: the last entry fills the top
-            size -= 1
-            key = heap[size]
-            heap[size] = 0
-            if size > 0:
-                sift_down(heap, size, key)
-        # s's waiting ray, if any, moves to the child that keeps (g, j), or leaves the packet uncast
-        # (the last lane takes its place).
-        for r in range(lanes):
-            if lane_slot[r] == s:
-                if keep >= 0:
+                if size > 0:
+                    sift_down(heap, size, key)
+            # s's waiting ray, if any, moves to the child that keeps (g, j).
+            for r in range(lanes):
+                if lane_slot[r] == s:
                     lane_slot[r] = s if keep == 0 else n_slots
+                    break
+            w = gn[g, GN_W]
+            t0 -= w * slot_mgv[s, 0] * node_b[k, NB_I]
+            t1 -= w * slot_mgv[s, 1] * node_b[k, NB_I + 1]
+            t2 -= w * slot_mgv[s, 2] * node_b[k, NB_I + 2]
+            pm0, pm1, pm2, pratio, pvis = slot_mgv[s, 0], slot_mgv[s, 1], slot_mgv[s, 2], slot_ratio[s], slot_vis[s]
+            # The child that keeps s's ray first: its slot is written before a full packet is cast.
+            for step in range(2):
+                side = step if keep != 1 else 1 - step
+                cg = gk[g, GK_LEFT + side] if split_g else g
+                ck = k if split_g else np.int64(node_bi[k, NB_LEFT]) + side
+                cs = s if side == 0 else n_slots
+                # Gather-side children keep the column; on the light side the child without j takes
+                # the sibling column (docs/math.md, "Gather representatives").
+                col = pcol if split_g or side == keep else sibling_column(pcol, depth, g_count)
+                rg = greps[cg, col]
+                j = lreps[ck, rg % r_count]
+                vis = pvis
+                nr = 0
+                o0, o1, o2, d0, d1, d2, tfar = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+                if side == keep and not split_g:
+                    m0, m1, m2, ratio = pm0, pm1, pm2, pratio
                 else:
-                    lanes -= 1
-                    rays -= 1
-                    if r < lanes:
-                        q0, q1, q2, e0, e1, e2, tn, tf = packet_get_ray(pk, width, lanes)
-                        packet_set_ray(pk, width, r, q0, q1, q2, e0, e1, e2, tn, tf)
-                        lane_slot[r] = lane_slot[lanes]
-                break
-        w = gn[g, GN_W]
-        t0 -= w * slot_mgv[s, 0] * node_b[k, NB_I]
-        t1 -= w * slot_mgv[s, 1] * node_b[k, NB_I + 1]
-        t2 -= w * slot_mgv[s, 2] * node_b[k, NB_I + 2]
-        pm0, pm1, pm2, pratio, pvis = slot_mgv[s, 0], slot_mgv[s, 1], slot_mgv[s, 2], slot_ratio[s], slot_vis[s]
-        # The child that keeps s's ray first: its slot is written before a full packet is cast.
-        for step in range(2):
-            side = step if keep != 1 else 1 - step
-            cg = gk[g, GK_LEFT + side] if split_g else g
-            ck = k if split_g else np.int64(node_bi[k, NB_LEFT]) + side
-            cs = s if side == 0 else n_slots
-            rg = greps[cg, ck % g_count]
-            j = lreps[ck, rg % r_count]
-            vis = pvis
-            nr = 0
-            o0, o1, o2, d0, d1, d2, tfar = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-            if side == keep and not split_g:
-                m0, m1, m2, ratio = pm0, pm1, pm2, pratio
-            else:
-                # The kept pair on the gather side: the parent's shadow ray, the child's own points' materials.
-                m0, m1, m2, ratio, nr, o0, o1, o2, d0, d1, d2, tfar = _pair_mg(
-                    gp, gn, gk, gidx, cg, rg, j, light_f, clamp_d2, ray_offset, visibility and side != keep)
-                if side == keep:
-                    if not vis:
-                        m0, m1, m2 = 0.0, 0.0, 0.0
-                else:
-                    rays += nr
-                    vis = nr == 0 or m0 > 0.0 or m1 > 0.0 or m2 > 0.0
-            slot_vis[cs] = vis
-            w = gn[cg, GN_W]
-            slot_g[cs], slot_l[cs], slot_rep[cs] = cg, ck, j
-            slot_mgv[cs, 0], slot_mgv[cs, 1], slot_mgv[cs, 2] = m0, m1, m2
-            slot_ratio[cs] = ratio
-            t0 += w * m0 * node_b[ck, NB_I]
-            t1 += w * m1 * node_b[ck, NB_I + 1]
-            t2 += w * m2 * node_b[ck, NB_I + 2]
-            if side != keep and nr > 0 and tfar > 0.0:
-                packet_set_ray(pk, width, lanes, o0, o1, o2, d0, d1, d2, 0.0, tfar)
-                lane_slot[lanes] = cs
-                lanes += 1
-                if lanes == width:
-                    t0, t1, t2 = _flush(cdata, buf, width, pk, lanes, lane_slot, gn, slot_g, slot_l, slot_mgv,
-                                        slot_ratio, slot_vis, node_b, t0, t1, t2)
-                    lanes = 0
-        n_slots += 1
-    if lanes > 0:
-        _flush(cdata, buf, width, pk, lanes, lane_slot, gn, slot_g, slot_l, slot_mgv, slot_ratio, slot_vis, node_b,
-               t0, t1, t2)
+                    # The kept pair on the gather side: the parent's shadow ray, the child's own points'
+                    # materials.
+                    m0, m1, m2, ratio, nr, o0, o1, o2, d0, d1, d2, tfar = _pair_mg(
+                        gp, gn, gk, gidx, cg, rg, j, light_f, clamp_d2, ray_offset, visibility and side != keep)
+                    if side == keep:
+                        if not vis:
+                            m0, m1, m2 = 0.0, 0.0, 0.0
+                    else:
+                        rays += nr
+                        vis = nr == 0 or m0 > 0.0 or m1 > 0.0 or m2 > 0.0
+                slot_vis[cs] = vis
+                w = gn[cg, GN_W]
+                slot_k[cs, SK_G], slot_k[cs, SK_L], slot_k[cs, SK_REP] = cg, ck, j
+                slot_k[cs, SK_COL], slot_k[cs, SK_DEPTH] = col, depth + (0 if split_g else 1)
+                slot_k[cs, SK_FORCE] = 1 if cg >= n and gcheck[cg, GC_STATE] == 2 else 0
+                slot_mgv[cs, 0], slot_mgv[cs, 1], slot_mgv[cs, 2] = m0, m1, m2
+                slot_ratio[cs] = ratio
+                t0 += w * m0 * node_b[ck, NB_I]
+                t1 += w * m1 * node_b[ck, NB_I + 1]
+                t2 += w * m2 * node_b[ck, NB_I + 2]
+                if side != keep and nr > 0 and tfar > 0.0:
+                    packet_set_ray(pk, width, lanes, o0, o1, o2, d0, d1, d2, 0.0, tfar)
+                    lane_slot[lanes] = cs
+                    lanes += 1
+                    if lanes == width:
+                        t0, t1, t2 = _flush(cdata, buf, width, pk, lanes, lane_slot, gn, slot_k, slot_mgv,
+                                            slot_ratio, slot_vis, node_b, t0, t1, t2)
+                        lanes = 0
+            n_slots += 1
+        if lanes > 0:
+            t0, t1, t2 = _flush(cdata, buf, width, pk, lanes, lane_slot, gn, slot_k, slot_mgv, slot_ratio, slot_vis,
+                                node_b, t0, t1, t2)
+            lanes = 0
+        if not visibility or n < 2 or n_slots >= max_cut:
+            break
+        marked, nr = check_gather_nodes(gp, gk, greps, n, light_f, clamp_d2, ray_offset, cdata, buf, width, pk,
+                                        lane_slot, heap, size, slot_k, slot_mgv, slot_vis, gcheck)
+        rays += nr
+        if not marked:
+            break
     # The final sum again, from the cut itself: the running total drifts by cancellation.
     t0 = 0.0
     t1 = 0.0
     t2 = 0.0
     lost = 0.0
     for s in range(n_slots):
-        k = slot_l[s]
-        w = gn[slot_g[s], GN_W]
+        k = slot_k[s, SK_L]
+        w = gn[slot_k[s, SK_G], GN_W]
         e0 = w * slot_mgv[s, 0] * node_b[k, NB_I]
         e1 = w * slot_mgv[s, 1] * node_b[k, NB_I + 1]
         e2 = w * slot_mgv[s, 2] * node_b[k, NB_I + 2]

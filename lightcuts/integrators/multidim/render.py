@@ -26,12 +26,15 @@ from lightcuts.integrators.camera import CAM_WIDTH
 from lightcuts.integrators.driver import BAND_PIXELS, Band, RenderResult, band_pixel, warm
 from lightcuts.integrators.lightcut import CHUNK
 from lightcuts.integrators.multidim.gather import GP_WIDTH, pixel_gather
+from lightcuts.integrators.multidim.gather_check import GC_WIDTH, SK_WIDTH
 from lightcuts.integrators.multidim.gather_tree import GK_WIDTH, GN_WIDTH, build_gather_tree, gather_representatives
 from lightcuts.integrators.multidim.product_cut import all_pairs, light_representatives, product_cut
 from lightcuts.integrators.registry import INTEGRATORS, CutIntegrator, check_non_negative
 
 #: Light representatives per light node (1: the tree's own only): the integrator's default.
 DEFAULT_REPRESENTATIVES = 4
+#: Gather-representative columns per gather node: the integrator's default (one per point at 16 spp).
+DEFAULT_GATHER_REPRESENTATIVES = 16
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -55,9 +58,8 @@ def _render_band(cdata, width, cam, seed, spp, sx, sy, aperture, focus, x0, x1, 
     idx = np.empty(spp, np.int64)
     stack = np.empty((2 * spp, 3), np.int64)
     heap = np.zeros(cap, np.uint64)
-    slot_g = np.empty(cap, np.int64)
-    slot_l = np.empty(cap, np.int64)
-    slot_rep = np.empty(cap, np.int64)
+    slot_k = np.empty((cap, SK_WIDTH), np.int64)
+    gcheck = np.empty((2 * spp, GC_WIDTH), np.int64)
     slot_mgv = np.empty((cap, 3))
     slot_ratio = np.empty(cap)
     slot_vis = np.empty(cap, np.bool_)
@@ -83,11 +85,11 @@ def _render_band(cdata, width, cam, seed, spp, sx, sy, aperture, focus, x0, x1, 
                                                               visibility, cdata, buf)
                 else:
                     root = build_gather_tree(gp, ng, gn, gk, idx, stack, seed, np.int64(py) * image_width + px)
-                    gather_representatives(gn, gk, ng, seed, np.int64(py) * image_width + px, greps)
+                    gather_representatives(gn, gk, idx, ng, seed, np.int64(py) * image_width + px, greps)
                     r0, r1, r2, pairs, rays, lost = product_cut(
                         gp, gn, gk, idx, greps, root, node_b, node_bi, roots, light_f, lreps, eps, max_cut, clamp_d2,
-                        ray_offset, visibility, cdata, buf, width, pk, lane_slot, heap, slot_g, slot_l, slot_rep,
-                        slot_mgv, slot_ratio, slot_vis)
+                        ray_offset, visibility, cdata, buf, width, pk, lane_slot, heap, slot_k, slot_mgv, slot_ratio,
+                        slot_vis, gcheck)
                 a0 += r0
                 a1 += r1
                 a2 += r2
@@ -104,9 +106,9 @@ def _render_band(cdata, width, cam, seed, spp, sx, sy, aperture, focus, x0, x1, 
          forest=True, params={
              "representatives": Param(int, DEFAULT_REPRESENTATIVES, lo=1, hi=64,
                                       doc="light representatives per light node (1: the tree's own only)"),
-             "gather_representatives": Param(int, 1, lo=1, hi=64,
-                                             doc="representative gather points per gather node (1: the gather "
-                                                 "tree's own only)")})
+             "gather_representatives": Param(int, DEFAULT_GATHER_REPRESENTATIVES, lo=1, hi=64,
+                                             doc="representative gather points per gather node, taken in turn "
+                                                 "by its pairs (1: one point per node)")})
 class Multidimensional(CutIntegrator):
     """One cut per pixel through (gather tree) x (light trees) (Walter et al. 2006); its cut counts
     (gather point, light) pairs per pixel.
@@ -116,16 +118,16 @@ class Multidimensional(CutIntegrator):
     same effort per eye ray for both cut integrators), plus aperture : lens radius, world units (0:
     pinhole, exactly the lightcuts integrator's eye rays); focus_distance : distance of the plane in
     focus along the view axis (None: |look_at - position|); representatives : light representatives per
-    light node (1: the tree's own only); gather_representatives : representative gather points per
-    gather node, the pair (G, L) using the one of column L mod R (1: the gather tree's own only; more
-    decorrelates the pairs' errors at the cost of shadow rays); all_pairs : the brute-force reference
-    instead (every gather point with every light).
+    light node (1: the tree's own only); gather_representatives : representative gather points
+    (columns) per gather node, stratified over its points and taken in turn by the pairs that hold
+    it (1: one point per node; docs/math.md, "Gather representatives"); all_pairs : the brute-force
+    reference instead (every gather point with every light).
     """
 
     def __init__(self, *, spp: int = 16, eps: float = 0.02, max_cut: int = 1000, clamp: bool = True,
                  clamp_min_distance: float = 0.05, visibility: bool = True, aperture: float = 0.0,
                  focus_distance: float | None = None, representatives: int = DEFAULT_REPRESENTATIVES,
-                 gather_representatives: int = 1, all_pairs: bool = False):
+                 gather_representatives: int = DEFAULT_GATHER_REPRESENTATIVES, all_pairs: bool = False):
         super().__init__(spp=spp, eps=eps, max_cut=max_cut, clamp=clamp, clamp_min_distance=clamp_min_distance,
                          visibility=visibility)
         self.aperture = check_non_negative(aperture, "camera.aperture")
@@ -172,7 +174,8 @@ def render_multidimensional(scene, caster, lights: dict, trees: dict | None, cam
                             clamp_min_distance: float = 0.05, envmap=None, seed: int = 0, crop=None,
                             progress=None, reference: bool = False, visibility: bool = True, pixels=None,
                             aperture: float = 0.0, focus_distance: float | None = None,
-                            representatives: int = DEFAULT_REPRESENTATIVES, gather_representatives: int = 1,
+                            representatives: int = DEFAULT_REPRESENTATIVES,
+                            gather_representatives: int = DEFAULT_GATHER_REPRESENTATIVES,
                             forest=None) -> RenderResult:
     """The :class:`Multidimensional` integrator of these settings (with ``reference=True``, its
     reference: every gather point with every light; ``trees`` may be None) rendering in one call;
