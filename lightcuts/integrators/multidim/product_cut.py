@@ -2,14 +2,18 @@ r"""The multidimensional cut of one pixel: refining (gather node, light node) pa
 
 The pixel's reflected radiance is the sum over gather points i and lights j of
 ``w_i M_ij G_ij V_ij I_j``. A pair (G, L) of a gather node and a light node stands for all its
-(i, j); its estimate is ``W_G I_L (M G V)(g, j)`` with the representative gather point g of G and
-the representative light j of L chosen for g (multiple representatives: ``lreps[L, g % R]``), and
-its bound is lightcuts.integrators.multidim.pair_bounds'. The cut starts at (gather root, each light
-tree's root) and replaces the pair with the largest bound by its two children on the gather or the
-light side (:func:`refine_gather`) until every bound is <= eps times the pixel's total (luminance)
-or the cut holds max_cut pairs. A child pair with the parent's (g, j) reuses its M G V: no new
-shadow ray. New shadow rays wait in packets of the caster's width (lightcuts.accel.packets) and are
-cast together without changing the cut (docs/math.md, "Multidimensional lightcuts").
+(i, j); its estimate is ``W_G I_L (M G V)(g, j)`` with g the representative gather point of G in
+the pair's column (``greps[G, c]``; the columns are stratified over G's points, and sibling pairs
+take different ones: :func:`sibling_column`) and the representative light j of L chosen for g
+(multiple representatives: ``lreps[L, g % R]``), and its bound is
+lightcuts.integrators.multidim.pair_bounds'. The cut starts at (gather root, each light tree's root)
+and replaces the pair with the largest bound by its two children on the gather or the light side
+(:func:`refine_gather`) until every bound is <= eps times the pixel's total (luminance) or the cut
+holds max_cut pairs; then the gather nodes of the cut are checked for points that see a light
+differently (lightcuts.integrators.multidim.gather_check), and the pairs of those that do are split
+on the gather side. A child pair with the parent's (g, j) reuses its M G V: no new shadow ray. New
+shadow rays wait in packets of the caster's width (lightcuts.accel.packets) and are cast together
+without changing the cut (docs/math.md, "Multidimensional lightcuts").
 """
 
 from __future__ import annotations
