@@ -1,12 +1,13 @@
 """Multidimensional lightcuts against per-eye-ray lightcuts on a config at a reduced size.
 
 Times (kernels loaded on one pixel first, untimed): lightcuts at 1 spp and at N spp, multidimensional
-at N gather points (the config's thin lens, if any: lightcuts renders a pinhole); pairs per pixel;
+at N gather points (the config's thin lens, if any: lightcuts renders a pinhole), in wall and in CPU
+seconds (all threads; the ratios of CPU times move less with a shared machine's load); pairs per pixel;
 shadow rays per second of the multidimensional kernel, over its whole time and over the time
-visibility adds to it (the image again without shadow rays, whose cut differs a little); per-pixel luminance error of the N-spp
-images against the N-point brute-force reference (the same eye rays) on a seeded sample of lit
-pixels (lit in the 1-spp lightcut image, so the sample does not depend on the image measured;
-``--pixels 0``: no errors).
+visibility adds to it (the image again without shadow rays, whose cut differs a little); per-pixel
+luminance error of the N-spp images against the N-point brute-force reference (the same eye rays)
+on a seeded sample of lit pixels (lit in the 1-spp lightcut image, so the sample does not depend on
+the image measured; ``--pixels 0``: no errors).
 
     PYTHONPATH=. python benchmarks/bench_multidim.py configs/cornell.yaml --size 128 --spp 16 --pixels 200
 """
@@ -55,24 +56,27 @@ def main() -> None:
     md_params.update(aperture=cfg.camera.aperture, focus_distance=cfg.camera.focus_distance)
 
     def timed(fn, *args, **kw):
+        """fn's result, its wall time and the process's CPU time (all threads) over it."""
         fn(*args, **{**kw, "crop": (0, 0, 1, 1)})  # load the kernel
-        t = time.perf_counter()
+        t, c = time.perf_counter(), time.process_time()
         r = fn(*args, **kw)
-        return r, time.perf_counter() - t
+        return r, time.perf_counter() - t, time.process_time() - c
 
-    lc1, t1 = timed(render_image, scene, caster, lights, trees, spp=1, **common, **cut)
-    lcn, tn = timed(render_image, scene, caster, lights, trees, spp=a.spp, **common, **cut)
-    md, tm = timed(render_multidimensional, scene, caster, lights, trees, spp=a.spp, **common, **cut, **md_params)
+    lc1, t1, c1 = timed(render_image, scene, caster, lights, trees, spp=1, **common, **cut)
+    lcn, tn, cn = timed(render_image, scene, caster, lights, trees, spp=a.spp, **common, **cut)
+    md, tm, cm = timed(render_multidimensional, scene, caster, lights, trees, spp=a.spp, **common, **cut, **md_params)
     print(f"lightcuts 1 spp {t1:.2f} s (cut {lc1.cut_size.mean():.0f}); lightcuts {a.spp} spp {tn:.2f} s "
           f"(cut per eye ray {lcn.cut_size.mean():.0f}, per pixel {a.spp * lcn.cut_size.mean():.0f}); "
           f"multidimensional {a.spp} {tm:.2f} s (pairs per pixel {md.cut_size.mean():.0f}, "
           f"shadow rays per pixel {md.shadow_rays / (w * h):.0f})")
-    print(f"time ratios: md/lc1 {tm / t1:.2f}, lc{a.spp}/md {tn / tm:.2f}")
-    _, tv = timed(render_multidimensional, scene, caster, lights, trees, spp=a.spp, **common, **cut, **md_params,
-                  visibility=False)
+    # On a shared machine the CPU-time ratios move less with the load than the wall-time ones.
+    print(f"time ratios: md/lc1 {tm / t1:.2f}, lc{a.spp}/md {tn / tm:.2f} (CPU time: {cm / c1:.2f}, {cn / cm:.2f})")
+    _, tv, cv = timed(render_multidimensional, scene, caster, lights, trees, spp=a.spp, **common, **cut, **md_params,
+                      visibility=False)
     print(f"multidimensional shadow rays {md.shadow_rays}: {md.shadow_rays / tm / 1e6:.2f} M/s over the image, "
-          f"{md.shadow_rays / max(tm - tv, 1e-9) / 1e6:.2f} M/s over the {tm - tv:.2f} s visibility adds "
-          f"(lightcuts 1 spp: {lc1.shadow_rays / t1 / 1e6:.2f} M/s over the image)")
+          f"{md.shadow_rays / max(tm - tv, 1e-9) / 1e6:.2f} M/s over the {tm - tv:.2f} s visibility adds; per CPU "
+          f"second {md.shadow_rays / cm / 1e6:.2f} M and {md.shadow_rays / max(cm - cv, 1e-9) / 1e6:.2f} M "
+          f"(lightcuts 1 spp: {lc1.shadow_rays / t1 / 1e6:.2f} M/s, {lc1.shadow_rays / c1 / 1e6:.2f} M per CPU second)")
     if a.pixels <= 0:
         caster.close()
         return
