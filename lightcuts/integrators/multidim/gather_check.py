@@ -7,9 +7,10 @@ that error has one sign in every pair that holds G and adds up over hundreds of 
 are each below eps. So once the cut has converged, each inner gather node of the cut is checked
 once: its PROBES pairs with the largest bounds each get one probe ray, from the point of G's other
 child in the pair's column to the pair's light, and the answer is compared with the pair's own ray
-at its representative. A node where the two points face the light and one sees it and the other
+at its representative. A node where both points are lit by the light and one sees it and the other
 does not disagrees: every pair that holds it is marked to be refined on the gather side next
-(:func:`lightcuts.integrators.multidim.product_cut.product_cut` goes on refining).
+(:func:`lightcuts.integrators.multidim.product_cut.product_cut` goes on refining). The probes are
+a few rays per pixel, cast one by one.
 
 ``gcheck`` ((2 spp, GC_WIDTH) int64, scratch): per gather node its state (GC_STATE: 0 not checked,
 1 checked, 2 disagrees: every pair that holds it, now or later, is refined on the gather side) and
@@ -21,13 +22,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from lightcuts.accel.kernel_api import packet_occluded
-from lightcuts.accel.packets import lane_occluded, packet_set_ray
-from lightcuts.integrators.cut import _light_mg
-from lightcuts.integrators.forest import LF_INDIRECT, LF_NRM, LF_POS, LF_TYPE
+from lightcuts.accel.kernel_api import occluded
 from lightcuts.integrators.heap import SLOT_MASK, heap_entry, heap_push
-from lightcuts.integrators.multidim.gather import GP_NRM, GP_POS, GP_REFL
 from lightcuts.integrators.multidim.gather_tree import GK_LEFT, GK_RIGHT
+from lightcuts.integrators.multidim.pair_estimate import pair_mg
 
 #: Probe rays per checked gather node (its pairs with the largest bounds).
 PROBES = 4
@@ -39,36 +37,12 @@ SK_G, SK_L, SK_REP, SK_COL, SK_DEPTH, SK_FORCE, SK_WIDTH = 0, 1, 2, 3, 4, 5, 6
 
 
 @njit(cache=True, error_model="numpy")
-def _facing_ray(gp, i, j, light_f, clamp_d2, ray_offset):
-    """Whether gather point i faces light j (geometric term > 0, the normal on the light's side) and
-    its shadow ray ``(lit, o0, o1, o2, d0, d1, d2, tfar)`` as the pairs cast it."""
-    c2 = clamp_d2 if light_f[j, LF_INDIRECT] > 0.0 else 0.0
-    _, _, _, _, lit, o0, o1, o2, d0, d1, d2, tfar = _light_mg(
-        np.int64(light_f[j, LF_TYPE]), light_f[j, LF_POS], light_f[j, LF_POS + 1], light_f[j, LF_POS + 2],
-        light_f[j, LF_NRM], light_f[j, LF_NRM + 1], light_f[j, LF_NRM + 2], c2, gp[i, GP_POS], gp[i, GP_POS + 1],
-        gp[i, GP_POS + 2], gp[i, GP_NRM], gp[i, GP_NRM + 1], gp[i, GP_NRM + 2], gp[i, GP_REFL], gp[i, GP_REFL + 1],
-        gp[i, GP_REFL + 2], 1.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0, ray_offset)
-    return lit, o0, o1, o2, d0, d1, d2, tfar
-
-
-@njit(cache=True, error_model="numpy")
-def _cast_probes(cdata, buf, width, pk, lanes, lane_slot, gcheck):
-    """Cast the waiting probe rays; lane r probes gather node ``lane_slot[r] >> 1`` whose pair's
-    representative saw the light iff ``lane_slot[r] & 1``; a different answer marks the node."""
-    packet_occluded(cdata, buf, pk, width, lanes)
-    for r in range(lanes):
-        g = lane_slot[r] >> 1
-        if (not lane_occluded(pk, width, r)) != ((lane_slot[r] & 1) == 1):
-            gcheck[g, GC_STATE] = 2
-
-
-@njit(cache=True, error_model="numpy")
-def check_gather_nodes(gp, gk, greps, n, light_f, clamp_d2, ray_offset, cdata, buf, width, pk, lane_slot, heap,
-                       size, slot_k, slot_mgv, slot_vis, gcheck):
+def check_gather_nodes(gp, gn, gk, gidx, greps, n, light_f, clamp_d2, ray_offset, visibility, cdata, buf, heap, size,
+                       slot_k, slot_mgv, slot_vis, gcheck):
     """Check the inner gather nodes of the cut not checked yet (module docstring) and mark the
     pairs of those that disagree: ``slot_k[q, SK_FORCE] = 1`` and the heap entry of bound inf (the
     heap is rebuilt). n : the tree's points; heap, size : the cut's max-heap (every pair with a
-    bound > 0); no shadow ray may be waiting in pk. Returns ``(marked, probe rays)``."""
+    bound > 0); the other arguments as product_cut's. Returns ``(marked, probe rays)``."""
     for g in range(n, 2 * n - 1):
         for c in range(PROBES):
             gcheck[g, GC_PAIRS + c] = -1
@@ -85,7 +59,6 @@ def check_gather_nodes(gp, gk, greps, n, light_f, clamp_d2, ray_offset, cdata, b
                 gcheck[g, GC_PAIRS + c] = t
                 break
     rays = 0
-    lanes = np.int64(0)
     for g in range(n, 2 * n - 1):
         if gcheck[g, GC_STATE] != 0 or gcheck[g, GC_PAIRS] < 0:
             continue
@@ -97,29 +70,23 @@ def check_gather_nodes(gp, gk, greps, n, light_f, clamp_d2, ray_offset, cdata, b
             q = np.int64(heap[u] & SLOT_MASK)
             col, j = slot_k[q, SK_COL], slot_k[q, SK_REP]
             a = greps[g, col]
-            # The pair's own answer is a's when a faces the light (its ray left from a) and a ray was
-            # cast: the estimate is not zero (seen) or the pair is shadowed.
+            # The pair's own answer is a's when a would cast the ray as a point of its own (lit by
+            # j, so the pair's ray left from a) and a ray was cast: the estimate is not zero (seen)
+            # or the pair is shadowed.
             seen = slot_mgv[q, 0] > 0.0 or slot_mgv[q, 1] > 0.0 or slot_mgv[q, 2] > 0.0
-            if not (seen or not slot_vis[q]) or not _facing_ray(gp, a, j, light_f, clamp_d2, ray_offset)[0]:
+            if not (seen or not slot_vis[q]) or pair_mg(gp, gn, gk, gidx, a, a, j, light_f, clamp_d2, ray_offset,
+                                                        visibility)[4] == 0:
                 continue
             left = gk[g, GK_LEFT]
             b = greps[gk[g, GK_RIGHT], col] if greps[left, col] == a else greps[left, col]
-            lit, o0, o1, o2, d0, d1, d2, tfar = _facing_ray(gp, b, j, light_f, clamp_d2, ray_offset)
-            if not lit:
+            _, _, _, _, nr, o0, o1, o2, d0, d1, d2, tfar = pair_mg(gp, gn, gk, gidx, b, b, j, light_f, clamp_d2,
+                                                                    ray_offset, visibility)
+            if nr == 0:
                 continue
             rays += 1
-            if tfar <= 0.0:  # closer than the ray offset: seen
-                if not seen:
-                    gcheck[g, GC_STATE] = 2
-                continue
-            packet_set_ray(pk, width, lanes, o0, o1, o2, d0, d1, d2, 0.0, tfar)
-            lane_slot[lanes] = 2 * g + (1 if seen else 0)
-            lanes += 1
-            if lanes == width:
-                _cast_probes(cdata, buf, width, pk, lanes, lane_slot, gcheck)
-                lanes = 0
-    if lanes > 0:
-        _cast_probes(cdata, buf, width, pk, lanes, lane_slot, gcheck)
+            # A light closer than the ray offset is seen.
+            if seen == (tfar > 0.0 and occluded(cdata, buf, o0, o1, o2, d0, d1, d2, 0.0, tfar)):
+                gcheck[g, GC_STATE] = 2
     marked = False
     for t in range(size):
         q = np.int64(heap[t] & SLOT_MASK)
