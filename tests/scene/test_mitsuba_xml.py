@@ -422,3 +422,22 @@ def test_config_sun_and_sky_join_the_files_scene_in_mitsuba(tmp_path):
     c = report["comparison"]
     assert c["energy_ratio"] == pytest.approx(1.0, abs=0.005)
     assert c["block8"]["median"] < 0.01
+
+
+def test_files_sun_and_sky_go_to_mitsuba_with_meshes_the_config_adds(tmp_path):
+    """With ``scene.meshes`` beside the file, Mitsuba gets lightcuts' exported scene: the file's
+    directional emitter as its sun and its envmap (as lightcuts holds it) as its environment."""
+    from lightcuts.config import load_config
+    from lightcuts.mitsuba.render import load_scene
+    from lightcuts.pipeline.plan import plan_run
+
+    _sky(tmp_path)
+    sun = ('<emitter type="directional"><vector name="direction" value="0,-1,-1"/>'
+           '<rgb name="irradiance" value="2,2,2"/></emitter>')
+    _xml(tmp_path, _rect('<bsdf type="diffuse"/>') + sun + ENVMAP, name="env.xml")
+    (tmp_path / "tri.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    (tmp_path / "c.yaml").write_text("scene: {mitsuba: env.xml, meshes: [{file: tri.obj}]}\n")
+    cfg = load_config(tmp_path / "c.yaml")
+    plan = plan_run(cfg)
+    mi_scene = load_scene(cfg, plan.scene(), plan.environment(), spp=1)
+    assert sorted(e.class_name() for e in mi_scene.emitters()) == ["DirectionalEmitter", "EnvironmentMapEmitter"]
