@@ -251,7 +251,8 @@ class Procedural(Strict):
 
 
 class Environment(Strict):
-    """An HDR lat-long environment map (EXR file, or generated) sampled into ``count`` directional lights."""
+    """An HDR lat-long environment map (EXR file, or generated; neither: the ``constant`` or ``envmap``
+    emitter of the ``scene.mitsuba`` file) sampled into ``count`` directional lights."""
 
     file: str | None = None
     procedural: Procedural | None = None
@@ -524,8 +525,11 @@ def config_from_dict(data: dict, source: str = "<config>", base_dir: str | Path 
     if (sc.builtin is not None) + (sc.procedural is not None) + (sc.mitsuba is not None) > 1:
         raise LightcutsError(f"{source}: scene: give at most one of builtin, procedural or mitsuba")
     env = cfg.lights.environment
-    if env is not None and (env.file is None) == (env.procedural is None):
-        raise LightcutsError(f"{source}: lights.environment: give exactly one of file or procedural")
+    if env is not None and env.file is not None and env.procedural is not None:
+        raise LightcutsError(f"{source}: lights.environment: give one of file or procedural, not both")
+    if env is not None and env.file is None and env.procedural is None and sc.mitsuba is None:
+        raise LightcutsError(f"{source}: lights.environment: give file or procedural (neither: the environment "
+                             "of a scene.mitsuba file)")
     check_files(cfg, source)
     return cfg
 

@@ -25,12 +25,24 @@ def sub_seed(seed: int, source: str) -> int:
 
 
 def load_environment(cfg) -> EnvironmentMap | None:
-    """The config's environment map (file or procedural sky, ``rotate`` and ``scale`` applied), or None."""
+    """The config's environment map (file or procedural sky, ``rotate`` and ``scale`` applied; with
+    neither, the ``constant`` or ``envmap`` emitter of its ``scene.mitsuba`` file, held in memory as
+    lightcuts.scene.mitsuba_emitters reads it), or None."""
     env = cfg.lights.environment
     if env is None:
         return None
     if env.file is not None:
         return EnvironmentMap.load(cfg.resolve(env.file), env.rotate, env.scale)
+    if env.procedural is None:
+        xml = None
+        if cfg.scene.mitsuba is not None:
+            from lightcuts.scene.mitsuba_xml import xml_summary
+
+            xml = xml_summary(cfg.resolve(cfg.scene.mitsuba))[0].environment
+        if xml is None:
+            raise LightcutsError("lights.environment: give file or procedural (or a scene.mitsuba file with a "
+                                 "constant or envmap emitter)")
+        return EnvironmentMap(xml.pixels, env.rotate, env.scale * xml.scale, xml.name, frame=xml.frame)
     p = env.procedural
     return procedural_sky(p.sun_direction, p.resolution, p.zenith, p.horizon, p.ground,
                           sun_irradiance=p.sun_irradiance, sun_radius=p.sun_radius, rotate=env.rotate,
@@ -44,7 +56,7 @@ def point_lights(cfg) -> LightSet | None:
         return None
     from lightcuts.scene.mitsuba_xml import xml_summary
 
-    points = xml_summary(cfg.resolve(cfg.scene.mitsuba))[2]
+    points = xml_summary(cfg.resolve(cfg.scene.mitsuba))[0].points
     if not len(points):
         return None
     return LightSet(points[:, 0], np.zeros((len(points), 3)), points[:, 1], "omni")
