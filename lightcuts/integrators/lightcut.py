@@ -226,8 +226,8 @@ def render_image(scene, caster, lights: dict, trees: dict, camera=None, spp: int
 
 def render_reference(scene, caster, lights: dict, camera=None, spp: int = 1, clamp: bool = True,
                      clamp_vpls: float = DEFAULT_CLAMP_VPLS, clamp_min_distance: float | None = None,
-                     envmap=None, seed: int = 0, crop=None, progress: Callable[[int], object] | None = None, visibility: bool = True,
-                     pixels=None, forest=None) -> RenderResult:
+                     envmap=None, seed: int = 0, crop=None, progress: Callable[[int], object] | None = None,
+                     visibility: bool = True, pixels=None, forest=None) -> RenderResult:
     """The brute-force reference of :func:`render_image`: the same eye rays and shading, every light
     at every hit with one shadow ray each (no trees)."""
     return render_image(scene, caster, lights, None, camera, spp, clamp=clamp, clamp_vpls=clamp_vpls,

@@ -177,7 +177,8 @@ def render_multidimensional(scene, caster, lights: dict, trees: dict | None, cam
     reference: every gather point with every light; ``trees`` may be None) rendering in one call;
     arguments as the integrator's constructor and :meth:`~lightcuts.integrators.registry.Integrator.render`."""
     integ = Multidimensional(spp=spp, eps=eps, max_cut=max_cut, clamp=clamp, clamp_vpls=clamp_vpls,
-                             clamp_min_distance=clamp_min_distance, visibility=visibility, aperture=aperture, focus_distance=focus_distance,
+                             clamp_min_distance=clamp_min_distance, visibility=visibility, aperture=aperture,
+                             focus_distance=focus_distance,
                              representatives=representatives, gather_representatives=gather_representatives)
     if reference:
         integ = integ.reference()
