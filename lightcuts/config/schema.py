@@ -26,6 +26,8 @@ DEFAULT_EPS = 0.02
 DEFAULT_MAX_CUT = 1000
 #: The VPLs the default clamp's disc holds (render.clamp.vpls; docs/math.md, "Clamping").
 DEFAULT_CLAMP_VPLS = 400
+#: The density clamp's disc covers at most 1 / LIT_AREA_SHARES of the lit surfaces (of the VPLs).
+LIT_AREA_SHARES = 250
 DEFAULT_RAY_CASTER = "embree"
 DEFAULT_INTEGRATOR = "lightcuts"
 
@@ -292,8 +294,9 @@ class TreeConfig(Strict):
 
 class Clamp(Strict):
     """Clamping of indirect VPLs: G uses max(d, r) (docs/math.md, "Clamping"). ``mode: density`` (the
-    default): r = sqrt(vpls) * the VPLs' median spacing (lightcuts.lights.spacing), the radius of a disc
-    holding about ``vpls`` VPLs; ``mode: diagonal``: r = min_distance * scene diagonal. A config that
+    default): r = sqrt(min(vpls, N / LIT_AREA_SHARES)) * the N indirect VPLs' median spacing
+    (lightcuts.lights.spacing), the radius of a disc holding about ``vpls`` VPLs and at most
+    1 / LIT_AREA_SHARES of them; ``mode: diagonal``: r = min_distance * scene diagonal. A config that
     sets ``min_distance`` without a mode means ``diagonal``."""
 
     enabled: bool = True

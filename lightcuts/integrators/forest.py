@@ -64,7 +64,7 @@ class Forest:
     node_b : (K, 16) float32, what the kernel reads of node_f and node_k (``NB_*``), one cache line
         a node; node_bi : the same memory viewed as (K, 16) int32 (:func:`pack_nodes`)
     vpl_spacing : the indirect VPLs' median spacing, world units (lightcuts.lights.spacing; 0 without
-        two of them), which the default clamp radius is a multiple of
+        two of them), which the default clamp radius is a multiple of; vpl_count : their number
     """
 
     light_f: np.ndarray
@@ -76,6 +76,7 @@ class Forest:
     node_b: np.ndarray
     node_bi: np.ndarray
     vpl_spacing: float = 0.0
+    vpl_count: int = 0
 
 
 def cache_aligned_zeros(shape: tuple[int, int], dtype) -> np.ndarray:
@@ -266,5 +267,5 @@ def build_forest(lights: dict, trees: dict | None) -> Forest:
     node_b, node_bi = pack_nodes(node_f, node_k)
     return Forest(light_f=light_f, light_i=light_i, node_f=node_f, node_k=node_k, roots=np.array(roots, np.int64),
                   n_lights=n_lights, node_b=node_b, node_bi=node_bi,
-                  vpl_spacing=indirect_spacing({typ: ls for typ, ls in sets}))
+                  vpl_spacing=indirect_spacing(dict(sets)), vpl_count=int(sum(ls.indirect.sum() for _, ls in sets)))
 

@@ -38,7 +38,7 @@ from __future__ import annotations
 
 import math
 
-from lightcuts.config.schema import DEFAULT_CLAMP_VPLS
+from lightcuts.config.schema import DEFAULT_CLAMP_VPLS, LIT_AREA_SHARES
 from lightcuts.errors import LightcutsError
 from lightcuts.registry import Registry, declaration
 from lightcuts.integrators import MAX_CUT
@@ -139,8 +139,8 @@ class Integrator:
 class CutIntegrator(Integrator):
     """An integrator that cuts light trees: eps : relative error threshold of a cut (0: refine until
     every node is exact); max_cut : largest cut per eye ray (1 to MAX_CUT); clamp : clamping of
-    indirect VPLs at the radius :meth:`clamp_radius`, ``sqrt(clamp_vpls)`` times the VPLs' spacing or,
-    with ``clamp_min_distance`` given, ``clamp_min_distance * scene diagonal``; visibility : False
+    indirect VPLs at the radius :meth:`clamp_radius`, from the VPLs' density (``clamp_vpls``: the VPLs its
+    disc holds) or, with ``clamp_min_distance`` given, ``clamp_min_distance * scene diagonal``; visibility : False
     casts no shadow rays (every light visible: unshadowed images, and the cost of the cut without
     the caster's share, benchmarks/bench_render.py)."""
 
@@ -168,13 +168,16 @@ class CutIntegrator(Integrator):
 
     def clamp_radius(self, scene, forest) -> float:
         """The clamping radius of indirect VPLs in the scene, world units (0: no clamping):
-        ``sqrt(clamp_vpls) * forest.vpl_spacing`` (the radius of a disc holding about ``clamp_vpls``
-        VPLs; docs/math.md, "Clamping"), or ``clamp_min_distance * scene.diagonal`` when that is set."""
+        ``sqrt(min(clamp_vpls, N / LIT_AREA_SHARES)) * forest.vpl_spacing`` for the forest's N indirect
+        VPLs (the radius of a disc holding about ``clamp_vpls`` VPLs, and at most 1 / LIT_AREA_SHARES
+        of them; docs/math.md, "Clamping"), or ``clamp_min_distance * scene.diagonal`` when that is set."""
         if not self.clamp:
             return 0.0
         if self.clamp_min_distance is not None:
             return float(self.clamp_min_distance * scene.diagonal)
-        return float(math.sqrt(self.clamp_vpls) * (forest.vpl_spacing if forest is not None else 0.0))
+        if forest is None:
+            return 0.0
+        return float(math.sqrt(min(self.clamp_vpls, forest.vpl_count / LIT_AREA_SHARES)) * forest.vpl_spacing)
 
     def clamp_d2(self, scene, forest) -> float:
         """The squared clamping radius (:meth:`clamp_radius`)."""
