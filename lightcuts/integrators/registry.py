@@ -139,10 +139,10 @@ class Integrator:
 class CutIntegrator(Integrator):
     """An integrator that cuts light trees: eps : relative error threshold of a cut (0: refine until
     every node is exact); max_cut : largest cut per eye ray (1 to MAX_CUT); clamp : clamping of
-    indirect VPLs at the radius :meth:`clamp_radius`, from the VPLs' density (``clamp_vpls``: the VPLs its
-    disc holds) or, with ``clamp_min_distance`` given, ``clamp_min_distance * scene diagonal``; visibility : False
-    casts no shadow rays (every light visible: unshadowed images, and the cost of the cut without
-    the caster's share, benchmarks/bench_render.py)."""
+    indirect VPLs at the radius :meth:`clamp_radius`, from the VPLs' density (``clamp_vpls``: the
+    VPLs its disc holds) or, with ``clamp_min_distance`` given, ``clamp_min_distance * scene
+    diagonal``; visibility : False casts no shadow rays (every light visible: unshadowed images, and
+    the cost of the cut without the caster's share, benchmarks/bench_render.py)."""
 
     def __init__(self, *, spp: int = 1, eps: float = 0.02, max_cut: int = 1000, clamp: bool = True,
                  clamp_vpls: float = DEFAULT_CLAMP_VPLS, clamp_min_distance: float | None = None,
