@@ -292,7 +292,7 @@ def test_integrator_contract(name, small_cornell):
 #: that take the keyword.
 BAD_SETTINGS = [("spp", 0, "render.spp"), ("spp", 2.5, "render.spp"), ("eps", float("nan"), "render.eps"),
                 ("eps", -0.1, "render.eps"), ("max_cut", 0, "render.max_cut"), ("max_cut", 1 << 21, "render.max_cut"),
-                ("clamp_min_distance", -1.0, "render.clamp.min_distance"),
+                ("clamp_min_distance", -1.0, "render.clamp.min_distance"), ("clamp_vpls", -1.0, "render.clamp.vpls"),
                 ("continuation_rays", 65, "render.continuation_rays"),
                 ("representatives", "random", "render.representatives"), ("aperture", float("inf"), "camera.aperture"),
                 ("focus_distance", 0.0, "camera.focus_distance")]

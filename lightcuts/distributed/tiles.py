@@ -72,4 +72,5 @@ class Mosaic:
                             shadow_rays=int(self.rays.sum()), eye_rays=n * r.spp, clamped_energy=clamped,
                             clamped_fraction=clamped / total if total > 0 else 0.0, seconds=seconds, spp=r.spp,
                             eps=r.eps, max_cut=r.max_cut, reference=r.reference,
-                            crop=(self.x0, self.y0, self.x0 + w, self.y0 + h), n_lights=dict(r.n_lights))
+                            crop=(self.x0, self.y0, self.x0 + w, self.y0 + h), n_lights=dict(r.n_lights),
+                            clamp_radius=r.clamp_radius)

@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import math
 
+from lightcuts.config.schema import DEFAULT_CLAMP_VPLS, LIT_AREA_SHARES
 from lightcuts.errors import LightcutsError
 from lightcuts.registry import Registry, declaration
 from lightcuts.integrators import MAX_CUT
@@ -93,6 +94,10 @@ class Integrator:
         ``render.integrator.<name>``)."""
         return declaration(type(self))["params"][name].check(value, f"render.integrator.{name}")
 
+    def clamp_radius(self, scene, forest) -> float:
+        """The radius within which indirect VPLs are clamped, world units (0: none)."""
+        return 0.0
+
     def forest(self, lights: dict, trees: dict | None):
         """The light forest its renders take (lightcuts.integrators.forest.build_forest of the lights and
         trees; a reference's of the lights alone), or None if it uses none."""
@@ -133,29 +138,50 @@ class Integrator:
 
 class CutIntegrator(Integrator):
     """An integrator that cuts light trees: eps : relative error threshold of a cut (0: refine until
-    every node is exact); max_cut : largest cut per eye ray (1 to MAX_CUT); clamp,
-    clamp_min_distance : clamping of indirect VPLs at ``clamp_min_distance * scene diagonal``;
-    visibility : False casts no shadow rays (every light visible: unshadowed images, and the cost of
-    the cut without the caster's share, benchmarks/bench_render.py)."""
+    every node is exact); max_cut : largest cut per eye ray (1 to MAX_CUT); clamp : clamping of
+    indirect VPLs at the radius :meth:`clamp_radius`, from the VPLs' density (``clamp_vpls``: the
+    VPLs its disc holds) or, with ``clamp_min_distance`` given, ``clamp_min_distance * scene
+    diagonal``; visibility : False casts no shadow rays (every light visible: unshadowed images, and
+    the cost of the cut without the caster's share, benchmarks/bench_render.py)."""
 
     def __init__(self, *, spp: int = 1, eps: float = 0.02, max_cut: int = 1000, clamp: bool = True,
-                 clamp_min_distance: float = 0.05, visibility: bool = True):
+                 clamp_vpls: float = DEFAULT_CLAMP_VPLS, clamp_min_distance: float | None = None,
+                 visibility: bool = True):
         super().__init__(spp=spp)
         self.eps = check_non_negative(eps, "render.eps")
         self.max_cut = check_count(max_cut, "render.max_cut", MAX_CUT)
         self.clamp = bool(clamp)
-        self.clamp_min_distance = check_non_negative(clamp_min_distance, "render.clamp.min_distance")
+        self.clamp_vpls = check_non_negative(clamp_vpls, "render.clamp.vpls")
+        self.clamp_min_distance = None if clamp_min_distance is None else \
+            check_non_negative(clamp_min_distance, "render.clamp.min_distance")
         self.visibility = bool(visibility)
 
     @classmethod
     def settings(cls, cfg) -> dict:
-        r = cfg.render
-        return {**super().settings(cfg), "eps": r.eps, "max_cut": r.max_cut, "clamp": r.clamp.enabled,
-                "clamp_min_distance": r.clamp.min_distance}
+        r, c = cfg.render, cfg.render.clamp
+        return {**super().settings(cfg), "eps": r.eps, "max_cut": r.max_cut, "clamp": c.enabled,
+                "clamp_vpls": c.vpls, "clamp_min_distance": c.min_distance if c.mode == "diagonal" else None}
 
-    def clamp_d2(self, scene) -> float:
-        """The squared clamping distance in the scene (0: no clamping)."""
-        return float((self.clamp_min_distance * scene.diagonal) ** 2 if self.clamp else 0.0)
+    def clamp_settings(self) -> dict:
+        """The clamp keyword arguments of the constructor, for a counterpart (e.g. :meth:`reference`)."""
+        return {"clamp": self.clamp, "clamp_vpls": self.clamp_vpls, "clamp_min_distance": self.clamp_min_distance}
+
+    def clamp_radius(self, scene, forest) -> float:
+        """The clamping radius of indirect VPLs in the scene, world units (0: no clamping):
+        ``sqrt(min(clamp_vpls, N / LIT_AREA_SHARES)) * forest.vpl_spacing`` for the forest's N indirect
+        VPLs (the radius of a disc holding about ``clamp_vpls`` VPLs, and at most 1 / LIT_AREA_SHARES
+        of them; docs/math.md, "Clamping"), or ``clamp_min_distance * scene.diagonal`` when that is set."""
+        if not self.clamp:
+            return 0.0
+        if self.clamp_min_distance is not None:
+            return float(self.clamp_min_distance * scene.diagonal)
+        if forest is None:
+            return 0.0
+        return float(math.sqrt(min(self.clamp_vpls, forest.vpl_count / LIT_AREA_SHARES)) * forest.vpl_spacing)
+
+    def clamp_d2(self, scene, forest) -> float:
+        """The squared clamping radius (:meth:`clamp_radius`)."""
+        return self.clamp_radius(scene, forest) ** 2
 
 
 def make_integrator(cfg, integrator=None) -> Integrator:

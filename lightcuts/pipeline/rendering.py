@@ -153,9 +153,11 @@ def _run(cfg, plan, source, reference: bool, progress: bool, warmup: list, runne
     caster = plan.make_caster(scene)
     envmap = plan.environment()
     phase("lights")
+    t1, c1 = time.perf_counter(), compile_seconds()
     light_sets = plan.lights(scene, caster, envmap)
     c_pre = compile_seconds() - c0
     t_pre = time.perf_counter() - t0 - c_pre
+    t_lights = time.perf_counter() - t1 - (compile_seconds() - c1)
 
     t0, c0 = time.perf_counter(), compile_seconds()
     phase("trees")
@@ -200,8 +202,7 @@ def _run(cfg, plan, source, reference: bool, progress: bool, warmup: list, runne
         "resolution": [int(result.image.shape[1]), int(result.image.shape[0])],
         "crop": cfg.render.crop,
         "spp": cfg.render.spp,
-        "clamping": {"enabled": cfg.render.clamp.enabled, "min_distance": cfg.render.clamp.min_distance,
-                     "clamped_energy_fraction": float(passes.clamped_fraction)},
+        "clamping": clamping_record(cfg.render.clamp, passes),
         "compensation": cfg.render.compensation,
         "continuation_rays": cfg.render.continuation_rays,
         "representatives": cfg.render.representatives,
@@ -211,6 +212,7 @@ def _run(cfg, plan, source, reference: bool, progress: bool, warmup: list, runne
         "compile_seconds": {"preprocess": c_pre, "build": c_build, "render": t_jit},
         "build_seconds": t_build,
         "render_seconds": t_render,
+        **image_seconds(t_lights, t_build, passes),
         "cut_size_unit": plan.integrator.trait("cut_unit"),
         "cut_size_mean": float(passes.cut_size.mean()),
         "cut_size_max": float(passes.cut_size.max()),
@@ -241,6 +243,25 @@ def _run(cfg, plan, source, reference: bool, progress: bool, warmup: list, runne
     if runner is not None:
         report["cluster"] = runner.record()
     return Render(cfg, passes.image, passes.cut_size, report, ref_image)
+
+
+def clamping_record(clamp, passes) -> dict:
+    """report.json's ``clamping``: the settings of ``render.clamp`` that its mode reads, the radius
+    pass 0 clamped within (world units, 0 when off; each pass's is in its ``passes`` record) and
+    the fraction of the reflected light clamping removed (the passes' mean)."""
+    setting = {"density": "vpls", "diagonal": "min_distance"}[clamp.mode]
+    return {"enabled": clamp.enabled, "mode": clamp.mode, setting: getattr(clamp, setting),
+            "radius": float(passes.records[0]["clamp_radius"]),
+            "clamped_energy_fraction": float(passes.clamped_fraction)}
+
+
+def image_seconds(t_lights: float, t_trees: float, passes) -> dict:
+    """report.json's ``image_seconds`` and its parts: from the loaded scene (and its ray caster, which
+    any renderer of it needs) to the finished image, pass 0's lights and trees (``t_lights``,
+    ``t_trees``) and every pass after them (their lights, trees and image), compiling and loading
+    kernels left out: the time an efficiency divides by."""
+    parts = {"lights": float(t_lights), "trees": float(t_trees), "passes": passes.seconds}
+    return {"image_seconds": parts["lights"] + parts["trees"] + parts["passes"], "image_seconds_parts": parts}
 
 
 def _threads() -> int:

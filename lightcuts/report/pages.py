@@ -39,12 +39,13 @@ def render(r) -> Page:
     layers.append(Layer("cut size", r.cut_size, "cut"))
     row = {"resolution": f"{rep['resolution'][0]}x{rep['resolution'][1]}", "lights": sum(rep["lights"].values()),
            **{k: rep[k] for k in ("builder", "cut_size_mean", "cut_size_max", "shadow_rays_per_pixel",
-                                  "preprocess_seconds", "build_seconds", "render_seconds")}}
+                                  "preprocess_seconds", "build_seconds", "render_seconds", "image_seconds")}}
     cols = [("resolution", "Resolution", None), ("lights", "Lights", "{:,}"), ("builder", "Builder", None),
             ("cut_size_mean", "Avg cut", "{:.1f}"), ("cut_size_max", "Max cut", "{:.0f}"),
             ("shadow_rays_per_pixel", "Shadow rays / pixel", "{:.1f}"), ("preprocess_seconds", "Preprocess (s)",
                                                                           "{:.2f}"),
-            ("build_seconds", "Build (s)", "{:.2f}"), ("render_seconds", "Render (s)", "{:.2f}")]
+            ("build_seconds", "Build (s)", "{:.2f}"), ("render_seconds", "Render (s)", "{:.2f}"),
+            ("image_seconds", "Image time (s)", "{:.2f}")]
     if "reference" in rep:
         e = rep["reference"]["relative_error"]
         row.update(err_median=e["median"], err_p99=e["p99"], speedup=rep["reference"]["speedup"])
