@@ -278,3 +278,69 @@ def test_a_mitsuba_row_at_equal_time(config):
     assert all(p["seconds"] == p["render_seconds"] > 0 and p["lights_seconds"] == 0 for p in pts)
     assert pts[1]["relmse_raw"] < pts[0]["relmse_raw"] / 4
     assert s.images["tracer:mitsuba"].shape == (32, 32, 3)
+
+
+def test_masked_figures_recomputed_from_the_written_images(studied, config):
+    """The last point's measured relMSE is relmse(row image, reference) with the emitter mask the
+    scene casts: masked pixels (the light itself) are out of it."""
+    from lightcuts.config import load_config
+    from lightcuts.integrators.primary import emitter_mask
+    from lightcuts.pipeline.plan import plan_run
+    from lightcuts.report.efficiency import relmse
+    from lightcuts.report.images import read_exr
+
+    out, report = studied
+    plan = plan_run(load_config(config), render=True)
+    scene = plan.scene()
+    with plan.make_caster(scene) as caster:
+        mask = emitter_mask(scene, caster, SMALL["render"]["crop"])
+    assert mask.sum() == report["masked_pixels"] > 0
+    image, reference = read_exr(out / "image-path.exr"), read_exr(out / "reference.exr")
+    last = [p for p in report["points"] if p["label"] == "path"][-1]
+    assert last["relmse_raw"] == pytest.approx(relmse(image, reference, mask), rel=1e-5)
+    assert relmse(image, reference) > 1.1 * last["relmse_raw"]  # the light's edge pixels add to it
+
+
+def test_table_rows_from_synthetic_ladders():
+    """A row's figures are its last point's; its error at a time the measured values interpolated in
+    log-log, the reference's share taken off after; builder ratios within a group only."""
+    from lightcuts.pipeline.study import _rows
+    from lightcuts.pipeline.study_rows import StudyRow
+
+    rows = [StudyRow("a/x", "r", "a", None, ladder="spp"), StudyRow("a/y", "r", "a", None, ladder="spp"),
+            StudyRow("b", "r", "b", None)]
+    noise = {"relmse": 0.01, "block8_rms": 0.01}
+    points = []
+    for label, scale in (("a/x", 1.0), ("a/y", 3.0), ("b", 2.0)):
+        for k, t in ((1, 1.0), (2, 2.0), (4, 4.0)):
+            raw = scale * 0.4 / k + noise["relmse"]
+            points.append({"label": label, "samples": k, "seconds": t, "relmse_raw": raw, "relmse": raw - 0.01,
+                           "block8_rms_raw": 0.05 * scale / k ** 0.5, "block8_rms": None, "efficiency": t * (raw - 0.01)})
+    table = _rows(rows, points, [3.0, 8.0], noise)
+    ax, ay, b = table
+    assert (ax["samples"], ax["seconds"], ax["efficiency"]) == (4, 4.0, points[2]["efficiency"])
+    raw3 = np.exp(np.log(0.4 / 2 + 0.01) * (1 - np.log(1.5) / np.log(2)) + np.log(0.4 / 4 + 0.01) * np.log(1.5) / np.log(2))
+    assert ax["relmse_at_3s"] == pytest.approx(raw3 - 0.01, rel=1e-12)
+    rms3 = 0.05 / 3 ** 0.5 * 1.0  # 1 / sqrt(k) is a straight line in log-log: exact
+    assert ax["block8_rms_at_3s"] == pytest.approx(np.sqrt(rms3 ** 2 - 0.01 ** 2), rel=1e-9)
+    assert ax["relmse_at_8s"] is None and ax["block8_rms_at_8s"] is None
+    assert (ax["ratio_best_builder"], ay["ratio_best_builder"], ax["ratio_samples"]) == (1.0, pytest.approx(3.0), 4)
+    assert b["ratio_best_builder"] is None  # alone in its group
+
+
+def test_builders_option_checked_as_itself(config):
+    with pytest.raises(LightcutsError, match=r"^--builders: unknown builder 'nope'"):
+        _rows(config, "path", builders="agglomerative,nope")
+
+
+def test_budget_ends_every_ladder(config):
+    """Each ladder stops at its first point whose time reaches the budget."""
+    from lightcuts.config import load_config
+    from lightcuts.pipeline.plan import plan_run
+    from lightcuts.pipeline.study import study_run
+
+    cfg = load_config(config)
+    s = study_run(cfg, plan_run(cfg, render=True), _rows(config, "lightcuts", "path"), reference="lightcuts",
+                  reference_spp=4, times=[1e-9], progress=False, log=lambda *a: None)
+    assert [(p["label"], p["samples"]) for p in s.points] == [("lightcuts/agglomerative", 1), ("path", 1)]
+    assert s.report["budget"] == 1e-9
