@@ -17,14 +17,16 @@ The command-line form (also an entry of a rows file):
 PARAM: VALUE}``, values read as YAML) or ``tracer:NAME``. A dotted ``KEY`` is a config override of
 that row (``render.eps=0.05``); a plain one a row option:
 
-* ``label=TEXT``: the row's name in tables and file names (default the row's text; a row crossed
-  with builders gets ``/BUILDER`` appended);
+* ``label=TEXT``: the row's name in tables and file names (default its SPEC and overrides, e.g.
+  ``path:max_depth=8 render.eps=0.05``; ``config`` for a file's row that names no integrator; a row
+  that uses light trees gets ``/BUILDER`` appended);
 * ``builders=A,B``: the builders crossed with this row (default ``--builders``, else the config's);
   only for an integrator that uses light trees;
 * ``ladder=passes|spp``: what the ladder of sample counts counts: passes (each with its own lights,
   trees and eye rays; the running mean is the image, as ``render.passes``) or samples per pixel (one
-  render per count at ``render.spp``). Default: passes for integrators that use light trees (their
-  lights are redrawn only by a new pass), spp otherwise; path tracer rows count spp;
+  render per count at ``render.spp``, one pass). Default: passes for integrators that use light
+  trees (their lights are redrawn only by a new pass), spp otherwise; path tracer rows count spp.
+  Either way the ladder takes the place of ``render.passes``;
 * ``samples=1,4,16``: the ladder's counts (default 1, 2, 4, ... until the time budget);
 * ``converging=false``: keep the config's ``render.compensation`` and ``render.representatives``
   (by default an integrator with the ``converging`` trait runs with both on: compensation and

@@ -433,6 +433,7 @@ OPTION_BOUNDS = [
     (["reference", "run.yaml"], "--max-depth", limits.MAX_BOUNCES),
     (["compare", "run.yaml", "--mitsuba"], "--mitsuba-spp", limits.MAX_REFERENCE_SPP),
     (["compare", "run.yaml", "--mitsuba"], "--mitsuba-passes", limits.MAX_PASSES),
+    (["study", "run.yaml"], "--reference-spp", limits.MAX_REFERENCE_SPP),
 ]
 
 

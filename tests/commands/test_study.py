@@ -344,3 +344,14 @@ def test_budget_ends_every_ladder(config):
                   reference_spp=4, times=[1e-9], progress=False, log=lambda *a: None)
     assert [(p["label"], p["samples"]) for p in s.points] == [("lightcuts/agglomerative", 1), ("path", 1)]
     assert s.report["budget"] == 1e-9
+
+
+def test_times_at_the_limit():
+    from lightcuts.commands.study import parse_times
+    from lightcuts.limits import MAX_POINTS
+
+    assert parse_times(",".join(str(i) for i in range(1, MAX_POINTS + 1)))[-1] == MAX_POINTS
+    with pytest.raises(LightcutsError, match=f"--times .*: expected 1 to {MAX_POINTS} increasing seconds"):
+        parse_times(",".join(str(i) for i in range(1, MAX_POINTS + 2)))
+    with pytest.raises(LightcutsError, match="increasing"):
+        parse_times("60,10")
