@@ -36,11 +36,12 @@ def _luminance(image) -> np.ndarray:
     return np.asarray(image, np.float64) @ LUMINANCE
 
 
-def _keep(shape, mask) -> np.ndarray:
-    keep = np.ones(shape, bool) if mask is None else ~np.asarray(mask, bool)
-    if keep.shape != shape:
-        raise ValueError(f"mask has shape {keep.shape}; expected {shape}")
-    return keep
+def _mean_relative(squared: np.ndarray, y_ref: np.ndarray, mask, epsilon: float) -> float:
+    """Mean of ``squared / (y_ref^2 + epsilon)`` over the pixels not in ``mask`` (0 if none)."""
+    keep = np.ones(y_ref.shape, bool) if mask is None else ~np.asarray(mask, bool)
+    if keep.shape != y_ref.shape:
+        raise ValueError(f"mask has shape {keep.shape}; expected {y_ref.shape}")
+    return float(np.mean(squared[keep] / (y_ref[keep] ** 2 + epsilon))) if keep.any() else 0.0
 
 
 def relmse(image: np.ndarray, reference: np.ndarray, mask: np.ndarray | None = None,
@@ -50,10 +51,7 @@ def relmse(image: np.ndarray, reference: np.ndarray, mask: np.ndarray | None = N
     y, r = _luminance(image), _luminance(reference)
     if y.shape != r.shape:
         raise ValueError(f"images differ in shape: {np.shape(image)} and {np.shape(reference)}")
-    keep = _keep(r.shape, mask)
-    if not keep.any():
-        return 0.0
-    return float(np.mean((y[keep] - r[keep]) ** 2 / (r[keep] ** 2 + epsilon)))
+    return _mean_relative((y - r) ** 2, r, mask, epsilon)
 
 
 def reference_relmse(half_a: np.ndarray, half_b: np.ndarray, mask: np.ndarray | None = None,
@@ -64,11 +62,7 @@ def reference_relmse(half_a: np.ndarray, half_b: np.ndarray, mask: np.ndarray | 
     a, b = _luminance(half_a), _luminance(half_b)
     if a.shape != b.shape:
         raise ValueError(f"halves differ in shape: {np.shape(half_a)} and {np.shape(half_b)}")
-    keep = _keep(a.shape, mask)
-    if not keep.any():
-        return 0.0
-    r = (a[keep] + b[keep]) / 2.0
-    return float(np.mean((a[keep] - b[keep]) ** 2 / 4.0 / (r * r + epsilon)))
+    return _mean_relative((a - b) ** 2 / 4.0, (a + b) / 2.0, mask, epsilon)
 
 
 def subtract(raw: float, noise: float) -> float:
