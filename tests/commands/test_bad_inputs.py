@@ -267,12 +267,34 @@ CASES = [
     ("accel-repeats-1e9", ["accel", "run.yaml", "--repeats", "1000000000"], None, None),
     ("reference-spp-2**40", ["reference", "run.yaml", "--renderer", "lightcuts", "--spp", str(2**40)], None, None),
     ("reference-max-depth-2**40", ["reference", "run.yaml", "--max-depth", str(2**40)], None, None),
+    # the efficiency study's rows and options
+    ("study-unknown-integrator", ["study", "run.yaml", "--row", "nope"], None, None),
+    ("study-row-unknown-key", ["study", "run.yaml", "--row", "path render.epss=1"], None, None),
+    ("study-row-integrator-param", ["study", "run.yaml", "--row", "path:colour=red"], None, None),
+    ("study-row-unknown-option", ["study", "run.yaml", "--row", "path colour=red"], None, None),
+    ("study-row-builders-without-trees", ["study", "run.yaml", "--row", "path builders=agglomerative"], None, None),
+    ("study-unknown-builder", ["study", "run.yaml", "--builders", "nope"], None, None),
+    ("study-row-changes-camera", ["study", "run.yaml", "--row", "path camera.resolution=[8,8]"], None, None),
+    ("study-row-samples-2**40", ["study", "run.yaml", "--row", f"path samples=1,{2**40}"], None, None),
+    ("study-unknown-tracer", ["study", "run.yaml", "--row", "tracer:nope"], None, None),
+    ("study-unknown-renderer", ["study", "run.yaml", "--renderer", "nope"], None, None),
+    ("study-reference-sun", ["study", "bad.yaml"],
+     _config(lights__sun={"direction": [0, -1, 0], "irradiance": [1, 1, 1]}), None),
+    ("study-reference-spp-2**40", ["study", "run.yaml", "--reference-spp", str(2**40)], None, None),
+    ("study-rows-file-missing", ["study", "run.yaml", "--rows", "nowhere.yaml"], None, None),
+    ("study-rows-file-not-rows", ["study", "run.yaml", "--rows", "garbage.exr"], None, None),
+    ("study-times-text", ["study", "run.yaml", "--times", "ten"], None, None),
+    ("study-times-0", ["study", "run.yaml", "--times", "0,10"], None, None),
+    ("study-budget-0", ["study", "run.yaml", "--budget", "0"], None, None),
+    ("study-epsilon-nan", ["study", "run.yaml", "--epsilon", "nan"], None, None),
+    ("study-out-user-folder", ["study", "run.yaml", "--out", "mine"], None, None),
 ]
 #: Every command, with an --out where nothing can be written: /proc and /sys refuse new entries even
 #: to root, who passes every permission check.
 UNWRITABLE = ["/proc/lightcuts-out", "/sys/lightcuts-out/deeper"]
 OUT_COMMANDS = {"render": [], "lights": [], "tree": [], "compare": [], "scaling": ["--sizes", "100"],
-                "scaling-gather": ["--gather", "1,4"], "accel": [], "reference": ["--renderer", "lightcuts"]}
+                "scaling-gather": ["--gather", "1,4"], "accel": [], "reference": ["--renderer", "lightcuts"],
+                "study": []}
 CASES += [(f"unwritable-{where.split('/')[1]}-{name}", [name.split("-")[0], "run.yaml", *extra, "--out", where],
            None, None) for name, extra in OUT_COMMANDS.items() for where in UNWRITABLE]
 
@@ -416,6 +438,7 @@ OPTION_BOUNDS = [
     (["reference", "run.yaml"], "--max-depth", limits.MAX_BOUNCES),
     (["compare", "run.yaml", "--mitsuba"], "--mitsuba-spp", limits.MAX_REFERENCE_SPP),
     (["compare", "run.yaml", "--mitsuba"], "--mitsuba-passes", limits.MAX_PASSES),
+    (["study", "run.yaml"], "--reference-spp", limits.MAX_REFERENCE_SPP),
 ]
 
 
