@@ -277,8 +277,17 @@ def _lit_windows(rng, mass, storey, owner, lit: int) -> np.ndarray:
     return np.sort(np.argpartition(-keys, lit - 1)[:lit])
 
 
-def city_parts(emitters: int, seed: int) -> tuple[PartList, Buildings]:
-    """The city's parts (module docstring) and its buildings (windows lie on the masses' faces)."""
+class City(NamedTuple):
+    """The generated city: its parts, its buildings (the windows lie on the masses' faces) and the
+    emitter counts of :func:`budget`."""
+
+    parts: PartList
+    buildings: Buildings
+    plan: dict
+
+
+def city_parts(emitters: int, seed: int) -> City:
+    """The city (module docstring) with about ``emitters`` emitting triangles, from ``seed``."""
     rng = np.random.default_rng(seed)
     bld = buildings(rng)
     corner, u, _, mass, storey = window_slots(bld.lo, bld.hi, bld.s0, bld.s1)
@@ -317,7 +326,7 @@ def city_parts(emitters: int, seed: int) -> tuple[PartList, Buildings]:
                       scale=np.repeat(radiance[colour == c], 2 * across * high))
     _lamps(parts, rng, plan, lamp_axis, lamp_k, pole, side)
     _strings(parts, plan, str_axis, str_k, str_along)
-    return parts, bld
+    return City(parts, bld, plan)
 
 
 def _lamps(parts: PartList, rng, plan: dict, axis, k, pole, side) -> None:
@@ -391,5 +400,4 @@ def camera() -> Camera:
                  description="a 400 m street grid at night: lit windows, street lamps, strings of bulbs")
 def city_scene(params: dict, materials=None, exhibits=(), offsets=(), name: str = "city") -> Scene:
     """The city (module docstring) with its camera; ``materials``: overrides by ``PALETTE`` name."""
-    parts, _ = city_parts(params["emitters"], params["seed"])
-    return parts.to_scene(PALETTE, materials, camera(), name)
+    return city_parts(params["emitters"], params["seed"]).parts.to_scene(PALETTE, materials, camera(), name)

@@ -47,9 +47,9 @@ def test_a_million_emitters_in_seconds_with_modest_other_geometry(kind):
 def test_the_city_grows_its_lights_the_office_its_floor_then_its_tiles():
     """More emitters: more lit windows, lamps and bulbs in the same city; a larger office floor up
     to MAX_PANELS panels, then finer panels."""
-    sizes = {e: city.city_parts(e, 0)[1] for e in (1000, 100_000)}
-    assert np.array_equal(sizes[1000].hi, sizes[100_000].hi)  # the same buildings
-    counts = [city.budget(e, 40_000, 288, 480) for e in (1000, 10_000, 100_000)]
+    made = [city.city_parts(e, 0) for e in (1000, 10_000, 100_000)]
+    assert np.array_equal(made[0].buildings.hi, made[2].buildings.hi)  # the same buildings
+    counts = [m.plan for m in made]
     assert counts[0]["windows"] < counts[1]["windows"] and counts[0]["lamps"] < counts[1]["lamps"]
     assert counts[0]["bulbs"] < counts[1]["bulbs"] < counts[2]["bulbs"]
     grids = [office.grid(e) for e in (1000, 10_000, 100_000, 1_000_000)]
@@ -71,7 +71,7 @@ def test_same_seed_same_bytes_other_seed_differs(kind, tmp_path):
 def test_city_emitters_face_their_side():
     """Lamp heads face down, under their housing; bulbs face away from their centres; windows
     face horizontally (their facade's outward normal: test_windows_lie_on_the_facades)."""
-    parts, _ = city.city_parts(20_000, 1)
+    parts = city.city_parts(20_000, 1).parts
     scene = parts.to_scene(city.PALETTE)
     mats = _materials(parts)
     normals = scene.face_normals
@@ -92,7 +92,7 @@ def test_city_emitters_face_their_side():
 def test_windows_lie_on_the_facades():
     """Every window triangle (lit or dark), all three corners, lies 2 cm in front of one face of a
     building mass, inside that face, and faces away from it; just in front of it is open air."""
-    parts, bld = city.city_parts(10_000, 2)
+    parts, bld, _ = city.city_parts(10_000, 2)
     scene = parts.to_scene(city.PALETTE)
     windows = np.flatnonzero(np.isin(_materials(parts), (*city.WINDOW_COLOURS, "glass")))
     assert len(windows) > 10_000
@@ -134,7 +134,7 @@ def test_office_panels_face_down_from_the_ceiling_cells():
 def test_scene_passes_the_checks(kind):
     """Emission within the light limits, a mesh the casters take, no degenerate triangle, every
     solid closed with outward normals, emitters only on open parts, the camera inside the scene."""
-    parts, palette = ((city.city_parts(SMALL, 4)[0], city.PALETTE) if kind == "city"
+    parts, palette = ((city.city_parts(SMALL, 4).parts, city.PALETTE) if kind == "city"
                       else (office.office_parts(SMALL, 4), office.PALETTE))
     scene = make_scene(dict(type=kind, emitters=SMALL, seed=4))
     scene.check_emission(kind)
@@ -181,3 +181,85 @@ def test_shipped_config_builds(name):
     scene = scene_from_config(cfg)
     assert (scene.camera.width, scene.camera.height) == image_size(cfg) == (192, 128)
     assert abs(len(scene.emitters) - cfg.scene.procedural["emitters"]) <= 0.01 * cfg.scene.procedural["emitters"]
+
+
+def _luminance(rgb) -> np.ndarray:
+    return np.asarray(rgb, np.float64) @ [0.2126, 0.7152, 0.0722]
+
+
+@pytest.mark.parametrize("emitters", [10_000, 1_000_000])
+def test_an_emitters_power_does_not_depend_on_its_split(emitters):
+    """A lamp head emits its area times its material's radiance whatever its tiles; the median
+    window and the median ceiling panel likewise (their own factors are lognormal around 1 and
+    normal around 1)."""
+    parts, _, plan = city.city_parts(emitters, 0)
+    scene = parts.to_scene(city.PALETTE)
+    mats = _materials(parts)
+    power = scene.face_areas * _luminance(scene.emission)
+    for name in ("lamp_white", "lamp_sodium"):
+        per = power[mats == name].reshape(-1, 2 * np.prod(plan["lamp_tiles"])).sum(axis=1)
+        assert np.allclose(per, city.HEAD[0] * city.HEAD[1] * _luminance(city.PALETTE[name].emission), rtol=1e-9)
+    ratios = []
+    for name in city.WINDOW_COLOURS:
+        per = power[mats == name].reshape(-1, 2 * np.prod(plan["panes"])).sum(axis=1)
+        ratios.append(per / (city.WINDOW_W * city.WINDOW_H * _luminance(city.PALETTE[name].emission)))
+    assert abs(np.median(np.concatenate(ratios)) - 1.0) < 0.03
+    o = office.office_parts(emitters, 0)
+    scene = o.to_scene(office.PALETTE)
+    _, _, ku, kv, panels = office.grid(emitters)
+    per = (scene.face_areas * _luminance(scene.emission))[scene.emitters].reshape(panels, -1).sum(axis=1)
+    assert abs(np.median(per / (office.PANEL ** 2 * _luminance(office.PALETTE["panel"].emission))) - 1.0) < 0.03
+
+
+def _boxes(parts, names=None) -> tuple[np.ndarray, np.ndarray]:
+    """(lo, hi) (B, 3) of the closed parts' boxes (8 corners each; turned ones: their bounding box)."""
+    v = [pv.reshape(-1, 8, 3) for pv, c, m in zip(parts.vertices, parts.closed, parts.materials)
+         if c and (names is None or m in names)]
+    v = np.concatenate(v)
+    return v.min(axis=1), v.max(axis=1)
+
+
+@pytest.mark.parametrize("kind", ["city", "office"])
+def test_no_emitter_inside_a_solid(kind):
+    parts = city.city_parts(10_000, 5).parts if kind == "city" else office.office_parts(10_000, 5)
+    scene = parts.to_scene(city.PALETTE if kind == "city" else office.PALETTE)
+    mid = scene.triangles[scene.emitters].mean(axis=1)
+    for lo, hi in zip(*_boxes(parts)):
+        assert not np.any(np.all((mid > lo + 1e-9) & (mid < hi - 1e-9), axis=1)), (lo, hi)
+
+
+def test_lamps_stand_on_the_sidewalks_with_their_heads_over_the_road():
+    parts = city.city_parts(10_000, 6).parts
+    scene = parts.to_scene(city.PALETTE)
+    plinth_lo, plinth_hi = _boxes(parts, ["sidewalk"])
+    lo, hi = _boxes(parts, ["metal"])
+    poles = hi[:, 1] - lo[:, 1] > 5
+    foot = 0.5 * (lo + hi)[poles]
+    assert poles.sum() == 288 and np.allclose(lo[poles, 1], city.KERB)
+
+    def on_plinth(p):
+        return np.any(np.all((p[:, None, [0, 2]] > plinth_lo[None, :, [0, 2]])
+                             & (p[:, None, [0, 2]] < plinth_hi[None, :, [0, 2]]), axis=2), axis=1)
+
+    assert np.all(on_plinth(foot))
+    mats = _materials(parts)
+    heads = scene.triangles[np.isin(mats, ["lamp_white", "lamp_sodium"])].mean(axis=1)
+    assert len(heads) and not np.any(on_plinth(heads))
+    # over the road, within the arm's reach of the kerb
+    kerb = np.min([np.abs(heads[:, None, a] - np.stack([plinth_lo[:, a], plinth_hi[:, a]], 1).ravel()[None]).min(axis=1)
+                   for a in (0, 2)], axis=0)
+    assert np.all(kerb < city.ARM)
+
+
+@pytest.mark.parametrize("integrator", ["lightcuts", "path"])
+@pytest.mark.parametrize("name", ["city-10k", "office-10k"])
+def test_shipped_config_renders(name, integrator):
+    """The default integrator and the path tracer render the configs end to end (small, few
+    samples): a finite image, lit."""
+    import lightcuts
+
+    cfg = lightcuts.load_config(ROOT / "configs" / f"{name}.yaml", **{
+        "camera.resolution": [48, 32], "render.integrator": integrator, "render.spp": 2,
+        "lights.indirect.count": 1000})
+    image = lightcuts.render(cfg, progress=False).image
+    assert np.all(np.isfinite(image)) and np.all(image >= 0) and np.mean(image > 0) > 0.2
