@@ -36,11 +36,10 @@ from typing import NamedTuple
 
 import numpy as np
 
-from lightcuts.config.schema import Material
 from lightcuts.scene.batches import boxes, octahedra, quads, tiles
 from lightcuts.scene.registry import SCENES, SEED, emitters as emitters_param
 from lightcuts.scene.scene import Camera, Scene
-from lightcuts.scene.shapes import PartList
+from lightcuts.scene.shapes import PartList, material as _m
 
 NB, BLOCK, STREET, SIDEWALK = 6, 48.0, 16.0, 3.0
 PITCH = BLOCK + STREET
@@ -54,10 +53,6 @@ LAMP_FRACTIONS = (0.25, 0.75)  # where along a block edge the lamps stand
 POLE_H, ARM, HEAD = 7.5, 1.8, (0.6, 0.3)  # head: across, along the street
 STRING_Y, SAG, STRING_SPACING, BULB_R, BULBS_PER_STRING, WIRE_SEGMENTS = 6.5, 1.0, 6.0, 0.04, 30, 16
 RESOLUTION = (192, 128)
-
-
-def _m(albedo, specular=(0, 0, 0), exponent=0.0, emission=(0, 0, 0)) -> Material:
-    return Material(albedo=list(albedo), specular=list(specular), exponent=exponent, emission=list(emission))
 
 
 #: Surface name -> material (``scene.materials`` overrides any field by name); an emitter's radiance

@@ -27,11 +27,10 @@ import math
 
 import numpy as np
 
-from lightcuts.config.schema import Material
 from lightcuts.scene.batches import boxes, quads, tiles
 from lightcuts.scene.registry import SCENES, SEED, emitters as emitters_param
 from lightcuts.scene.scene import Camera, Scene
-from lightcuts.scene.shapes import PartList
+from lightcuts.scene.shapes import PartList, material as _m
 
 H, PANEL_PITCH, PANEL, PANEL_DROP, TILE_GAP = 2.8, 2.4, 0.6, 0.031, 0.002
 MIN_PANELS, MAX_PANELS, ASPECT = 64, 1200, 1.5
@@ -39,10 +38,6 @@ COLUMN_PITCH, COLUMN = 7.2, 0.5
 POD_PITCH, POD, AISLE = (4.8, 3.6), (3.2, 1.6), 2.4
 MULLION_PITCH = 1.5
 RESOLUTION = (192, 128)
-
-
-def _m(albedo, specular=(0, 0, 0), exponent=0.0, emission=(0, 0, 0)) -> Material:
-    return Material(albedo=list(albedo), specular=list(specular), exponent=exponent, emission=list(emission))
 
 
 #: Surface name -> material (``scene.materials`` overrides any field by name); a panel's radiance

@@ -31,6 +31,12 @@ K_RANGE = {"cylinder": (6, 512), "annulus": (6, 512), "torus": (6, 256), "sphere
 Z_TO_Y = trimesh.transformations.rotation_matrix(-np.pi / 2, [1, 0, 0])
 
 
+def material(albedo, specular=(0, 0, 0), exponent=0.0, emission=(0, 0, 0)) -> Material:
+    """A palette entry: diffuse albedo, Phong specular reflectance and exponent, emitted radiance
+    (RGB each)."""
+    return Material(albedo=list(albedo), specular=list(specular), exponent=exponent, emission=list(emission))
+
+
 def pose(translate=(0.0, 0.0, 0.0), rot_y: float = 0.0, rot_x: float = 0.0) -> np.ndarray:
     """(4, 4) float64: rotate about x, then about y (radians), then translate (metres)."""
     m = trimesh.transformations.rotation_matrix(rot_y, [0, 1, 0]) @ \
