@@ -9,7 +9,7 @@ by 1 to 3 lots; each lot's building is flush with the street and 2 m from its ne
 4 to 48 storeys of ``STOREY`` m, taller towards the centre; a tall one may stand as a set-back tower
 on a podium, and some carry a plant room on the roof.
 
-Emitters (one-sided, ``emitters`` E triangles in all, hit to a few triangles):
+Emitters (one-sided, ``emitters`` E triangles in all, hit to within one window's panes):
 
 - street lamps (``LAMP_SHARE`` of E): on the sidewalks, two per side of every block edge; a pole, an
   arm over the road and a housing whose underside is the lamp head, an LED array of tiles facing
@@ -26,7 +26,7 @@ Emitters (one-sided, ``emitters`` E triangles in all, hit to a few triangles):
 
 The camera stands at eye height in the middle north-south street near its southern end, looking
 north down the street: the nearest emitters are metres away, the farthest 400 m. Non-emitting
-geometry stays below about 150,000 triangles (most of it the unlit windows).
+geometry stays below 100,000 triangles (most of it the unlit windows).
 """
 
 from __future__ import annotations

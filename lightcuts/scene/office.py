@@ -2,22 +2,22 @@
 triangles (10^3 to 4 x 10^6).
 
 Layout (metres, y up): the floor x in [0, W], z in [0, D], ceiling at ``H``; W and D are ``nx`` and
-``nz`` panel pitches (``PANEL_PITCH``), so the floor grows with the panel grid (34 x 22 m at 10^3
-emitters, about 100 x 67 m from 10^5 on). Solid walls at both ends (x = 0, x = W), glazing with
-mullions along both sides (z = 0, z = D), the night black outside. Columns on a 7.2 m grid either side of the main aisle. Desk
-pods on a 4.8 x 3.6 m grid, clear of the columns and of a 2.4 m main aisle along x at z = D / 2: 4
-desks facing in pairs across a partition, each desk with a monitor and a chair (pulled out and
-turned at random); a seeded tenth of the pods are missing.
+``nz`` panel pitches (``PANEL_PITCH``), so the floor grows with the panel grid (31 x 24 m at 10^3
+emitters, 101 x 70 m from 10^5 on). Solid walls at both ends (x = 0, x = W), glazing with mullions
+along both sides (z = 0, z = D), the night black outside. Columns every 7.2 m in lines either side
+of a 2.4 m main aisle along x at z = D / 2. Desk pods on a 4.8 x 3.6 m grid, clear of the columns
+and of the aisle: 4 desks facing in pairs across a partition, each desk with a monitor and a chair
+(pulled out and turned at random); a seeded tenth of the pods are missing.
 
-Emitters: one 0.6 x 0.6 m LED panel in a frame at the centre of every ceiling cell, its face 31 mm
-below the ceiling, facing down (normal -y), split into ``ku`` x ``kv`` tiles (``ku`` = ``kv`` or
-``kv + 1``). The grid and the tiles are chosen together (:func:`grid`) so that 2 nx nz ku kv is
-within 1% of ``emitters``, the panels about 4 sqrt(emitters) in number (at most ``MAX_PANELS``) and
-the floor about 3 : 2. A panel's power does not depend on its tiles (the tiles' radiance makes up
-for the gaps between them); panels vary by 5% and a seeded 2% are dimmed to 30%.
+Emitters: a 0.6 x 0.6 m LED panel in a frame at the centre of a ceiling cell, its face 31 mm below
+the ceiling, facing down (normal -y), split into ``ku`` x ``kv`` tiles (``ku`` = ``kv`` or ``kv +
+1``); the few cells left over by the grid hold a vent. :func:`grid` chooses the panels (about 4
+sqrt(emitters), at most ``MAX_PANELS``) and their tiles so that the 2 ku kv triangles of each make
+``emitters`` to within one panel's. A panel's power does not depend on its tiles (the tiles'
+radiance makes up for the gaps between them); panels vary by 5% and a seeded 2% are dimmed to 30%.
 
 The camera stands at eye height at the x = 0 end of the main aisle, looking down it: the nearest
-panel is a metre away, the farthest about 100 m. Non-emitting geometry stays below about 150,000
+panel is a metre away, the farthest about 100 m. Non-emitting geometry stays below about 110,000
 triangles.
 """
 
