@@ -263,3 +263,14 @@ def test_shipped_config_renders(name, integrator):
         "lights.indirect.count": 1000})
     image = lightcuts.render(cfg, progress=False).image
     assert np.all(np.isfinite(image)) and np.all(image >= 0) and np.mean(image > 0) > 0.2
+
+
+def test_material_overrides_keep_each_emitters_own_factor():
+    """``scene.materials`` replaces a palette entry by name; every emitter of it keeps its factor."""
+    base = make_scene(dict(type="city", emitters=SMALL))
+    over = make_scene(dict(type="city", emitters=SMALL), {"window_warm": {"emission": [12.0, 7.4, 3.6]}})
+    changed = np.any(base.emission != over.emission, axis=1)
+    assert changed.sum() > 100
+    np.testing.assert_allclose(over.emission[changed], 2 * base.emission[changed], rtol=1e-12)
+    assert np.unique(np.round(over.emission[changed, 0], 9)).size > 10  # the windows' own radiances
+    np.testing.assert_array_equal(base.albedo, over.albedo)
