@@ -157,6 +157,12 @@ CASES = [
     ("procedural-gallery-no-meshes", ["render", "bad.yaml"], _config(scene={"procedural": {"type": "gallery"}}), None),
     ("procedural-and-builtin", ["render", "bad.yaml"],
      _config(scene={"builtin": "cornell", "procedural": {"type": "kitchen"}}), None),
+    ("procedural-city-negative-emitters", ["render", "bad.yaml"],
+     _config(scene={"procedural": {"type": "city", "emitters": -1000}}), None),
+    ("procedural-office-too-many-emitters", ["render", "bad.yaml"],
+     _config(scene={"procedural": {"type": "office", "emitters": 4_000_001}}), None),
+    ("procedural-city-emitters-float", ["render", "bad.yaml"],
+     _config(scene={"procedural": {"type": "city", "emitters": 1e4}}), None),
     # --set
     ("set-not-yaml", ["render", "run.yaml", "--set", "name=[oops"], None, None),
     ("set-no-equals", ["render", "run.yaml", "--set", "render.eps"], None, None),
