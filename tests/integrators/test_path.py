@@ -48,7 +48,8 @@ def test_passes_are_the_mean_of_the_pass_seeds_path_images():
     assert run.image.tobytes() == (acc / 3).astype(np.float32).tobytes()
     assert [p["seed"] for p in run.report["passes"]] == [pass_seed(11, p) for p in range(3)]
     assert run.report["cut_size_unit"] == "path vertices per eye ray"
-    assert run.report["plugins"]["integrator"] == {"type": "path", "max_depth": 64}
+    assert run.report["plugins"]["integrator"] == {"type": "path", "max_depth": 64, "light_sampler": "power"}
+    assert run.report["light_sampler"]["type"] == "power" and run.report["light_sampler"]["lights"] == 2
 
 
 def test_paths_have_at_most_max_depth_vertices():
