@@ -10,12 +10,13 @@ its squared mean luminance (the figure the README quotes), the mean luminance, t
 of one image (the second of two; indicative only on shared cores) and for a tree its build seconds
 and bytes per light.
 
-Scenes: ``configs/cornell.yaml`` (two emitting triangles) at --size x --size, every bounce; the
-test scene of six emitters over the floor the camera sees and 2,000 a hundred times farther with
-30 times their power (tests/integrators/lamps.py), direct light alone (max_depth 1) and every
-bounce; and 306 emitters at one to six times the near distance, direct light alone.
+Scenes: the shipped configs ``--configs`` (``cornell``: two emitting triangles; ``mesh-gallery``:
+208; ``kitchen``: 320; ``rooms``: 1,232) at --size x --size, every bounce; the test scene of six
+emitters over the floor the camera sees and 2,000 a hundred times farther with 30 times their power
+(tests/integrators/lamps.py), direct light alone (max_depth 1) and every bounce; and 306 emitters
+at one to six times the near distance, direct light alone.
 
-    PYTHONPATH=. python benchmarks/bench_light_sampler.py [--size 64] [--spp 16]
+    PYTHONPATH=. python benchmarks/bench_light_sampler.py [--size 64] [--spp 16] [--configs cornell,kitchen]
 """
 
 from __future__ import annotations
@@ -75,10 +76,12 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--size", type=int, default=64, help="image side, pixels")
     p.add_argument("--spp", type=int, default=16)
+    p.add_argument("--configs", default="cornell,mesh-gallery,kitchen,rooms", help="shipped configs, comma-separated")
     args = p.parse_args()
     n = args.size
-    cfg = lightcuts.load_config(ROOT / "configs" / "cornell.yaml", **{"camera.resolution": [n, n]})
-    show("cornell", plan_run(cfg, render=True).scene(), args.spp, 64)
+    for name in args.configs.split(","):
+        cfg = lightcuts.load_config(ROOT / "configs" / f"{name}.yaml", **{"camera.resolution": [n, n]})
+        show(name, plan_run(cfg, render=True).scene(), args.spp, 64)
     lamps = lamp_scene(n_far=2000, far_power=30.0, width=n, height=n)
     show("6 near + 2000 far", lamps, args.spp, 1)
     show("6 near + 2000 far", lamps, args.spp, 64)
