@@ -315,6 +315,7 @@ class Path(Integrator):
         return path_lights(scene, self.light_sampler, self.tree)
 
     def sampler_record(self, forest) -> dict:
+        """The :class:`PathLights`' record: its sampler, emitting triangles, build seconds, bytes."""
         return dict(forest.record)
 
     def band_kernel(self, f) -> Band:

@@ -92,7 +92,8 @@ def test_a_sun_a_reference_or_a_compare_is_one_line_before_any_work(tmp_path):
                           (["render", str(CORNELL), *path, "--reference"],
                            "error: --reference: integrator 'path' has no brute-force reference"),
                           (["compare", str(CORNELL), *path],
-                           "error: render.integrator: integrator 'path' uses no light trees")]:
+                           "error: render.integrator: integrator 'path' does not render the config's lights through their "
+                           "trees")]:
         rc, calls, err = cli_recording_work(argv + ["--out", "out"], tmp_path)
         assert (rc, calls) == (2, []), err
         assert err.strip().splitlines() == [err.strip()] and err.strip().startswith(message), err
