@@ -21,9 +21,9 @@ one cut serves, ``eye ray`` or ``pixel``; ``lightcuts scaling --gather`` compare
 ``render.representatives`` and ``render.continuation_rays``; the plan refuses them otherwise),
 ``reference`` (it has a brute-force reference: ``--reference`` and compare's errors), ``forest`` (it
 renders from the light forest of the config's lights and trees; compare, whose rows differ by their
-trees, refuses an integrator without it) and ``kernels``: the module whose ``_render_band`` kernel its renders use and
-whose ``warm_kernels()`` compiles it, which the commands compile in a second process while the
-lights and trees are made (lightcuts.pipeline.warmup). Adding an integrator is a subclass of
+trees, refuses an integrator without it) and ``kernels``: the module whose ``_render_band`` kernel
+its renders use and whose ``warm_kernels()`` compiles it, which the commands compile in a second
+process while the lights and trees are made (lightcuts.pipeline.warmup). Adding an integrator is a subclass of
 :class:`Integrator` registered with ``INTEGRATORS.register`` (or an entry point in group
 ``lightcuts.integrators`` naming the class).
 
