@@ -131,6 +131,8 @@ def test_same_bytes_on_any_thread_count(thread_counts):
 
 
 def test_bad_light_sampler_and_a_tree_without_emitters_are_one_line():
+    """An unknown light_sampler is refused by the plan, naming the key and the choices; a tree over
+    a scene without emitting triangles is refused when the render makes it (power renders black)."""
     import lightcuts
     from lightcuts.pipeline.plan import plan_run
 
