@@ -4,7 +4,8 @@ An integrator is an object built once from its settings (Mitsuba's plugin shape)
 takes the config's render settings and the entry's own parameters and checks them (one-line
 LightcutsError naming the config key), and :meth:`Integrator.render` renders a window of the image
 (a crop window or a pixel list) from the scene, the ray caster, the lights and trees (or their light
-forest, made once for many windows: :meth:`Integrator.forest`) and the per-run inputs (camera,
+forest, or whatever else it makes once per render for many windows: :meth:`Integrator.forest`, which
+a cluster's worker makes once for all its tiles) and the per-run inputs (camera,
 environment map, seed, progress). :meth:`Integrator.reference` is its brute-force counterpart over
 the same samples, against which its errors are measured. Every integrator renders through the one
 image driver (lightcuts.integrators.driver), supplying its band kernel call (:meth:`Integrator.band_kernel`).
@@ -19,11 +20,10 @@ one cut serves, ``eye ray`` or ``pixel``; ``lightcuts scaling --gather`` compare
 ``camera.aperture > 0`` otherwise), ``converging`` (it takes ``render.compensation``,
 ``render.representatives`` and ``render.continuation_rays``; the plan refuses them otherwise),
 ``reference`` (it has a brute-force reference: ``--reference`` and compare's errors), ``forest`` (it
-renders from the light forest of the lights and trees, :meth:`Integrator.forest`, which a cluster's
-worker makes once for all its tiles; compare, whose rows differ by their trees, refuses an
-integrator without it) and ``kernels``: the module whose ``_render_band`` kernel its renders use and
-whose ``warm_kernels()`` compiles it, which the commands compile in a second process while the
-lights and trees are made (lightcuts.pipeline.warmup). Adding an integrator is a subclass of
+renders from the light forest of the config's lights and trees; compare, whose rows differ by their
+trees, refuses an integrator without it) and ``kernels``: the module whose ``_render_band`` kernel
+its renders use and whose ``warm_kernels()`` compiles it, which the commands compile in a second
+process while the lights and trees are made (lightcuts.pipeline.warmup). Adding an integrator is a subclass of
 :class:`Integrator` registered with ``INTEGRATORS.register`` (or an entry point in group
 ``lightcuts.integrators`` naming the class).
 
@@ -31,7 +31,8 @@ Entries: ``lightcuts``, a lightcut per eye ray through every light tree (Walter 
 lightcuts.integrators.lightcut); ``multidimensional``, one cut per pixel through the product of a gather
 tree over the pixel's eye-ray hits and the light trees (Walter et al. 2006,
 lightcuts.integrators.multidim); ``path``, a path tracer with lightcuts' own BRDF over the scene's
-emitting triangles (lightcuts.integrators.path), which uses no lights or trees.
+emitting triangles (lightcuts.integrators.path), which uses none of the config's lights or trees
+(with ``light_sampler: tree``, a tree of its own over the emitting triangles).
 """
 
 from __future__ import annotations
@@ -98,12 +99,18 @@ class Integrator:
         """The radius within which indirect VPLs are clamped, world units (0: none)."""
         return 0.0
 
-    def forest(self, lights: dict, trees: dict | None):
-        """The light forest its renders take (lightcuts.integrators.forest.build_forest of the lights and
-        trees; a reference's of the lights alone), or None if it uses none."""
+    def forest(self, lights: dict, trees: dict | None, scene):
+        """What its renders of ``scene`` take, made once for many windows (a cluster's worker keeps it
+        for all its tiles): the light forest (lightcuts.integrators.forest.build_forest of the lights
+        and trees; a reference's of the lights alone), or the integrator's own per-run data."""
         from lightcuts.integrators.forest import build_forest
 
         return build_forest(lights, None if self.brute_force else trees)
+
+    def sampler_record(self, forest) -> dict:
+        """How its renders from ``forest`` draw lights, for report.json's ``light_sampler`` ({}: it draws
+        none)."""
+        return {}
 
     def reference(self) -> "Integrator":
         """The brute-force integrator over the same samples (its errors are measured against it)."""

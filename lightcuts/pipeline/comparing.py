@@ -68,8 +68,9 @@ def resolve_rows(cfg, builders=None, metrics=None, keys=("--builders", "--metric
     integrator = INTEGRATORS.resolve(cfg.render.integrator, "render.integrator")
     if not integrator.trait("forest", False):
         users = [e.name for e in INTEGRATORS.entries() if e.trait("forest", False)]
-        raise LightcutsError(f"render.integrator: integrator {integrator.name!r} uses no light trees, which a "
-                             f"compare's rows differ by; use render.integrator: {' or '.join(users)}")
+        raise LightcutsError(f"render.integrator: integrator {integrator.name!r} does not render the config's lights "
+                             f"through their trees, which a compare's rows differ by; use render.integrator: "
+                             f"{' or '.join(users)}")
     bkey, mkey = keys
     builders = names(builders, bkey) if builders is not None else default_builders()
     given = metrics is not None

@@ -223,6 +223,8 @@ def _run(cfg, plan, source, reference: bool, progress: bool, warmup: list, runne
         "threads": _threads(),
         "machine": platform.machine(),
     }
+    if result.light_sampler:
+        report["light_sampler"] = result.light_sampler
     ref_image = None
     if reference and runner is not None:
         t0 = time.perf_counter()

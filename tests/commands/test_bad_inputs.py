@@ -255,6 +255,8 @@ CASES = [
     # numbers that size work or memory, one past their limit (lightcuts.limits)
     ("spp-1e9", ["render", "run.yaml", "--set", "render.spp=1000000000"], None, None),
     ("spp-2**63-1", ["render", "run.yaml", "--set", f"render.spp={2**63 - 1}"], None, None),
+    ("path-light-sampler-unknown", ["render", "run.yaml", "--set", "render.integrator={type: path, light_sampler: foo}"],
+     None, None),
     ("gather-points-1e9", ["render", "run.yaml", "--set", "render.integrator=multidimensional",
                            "--set", "render.spp=1000000000"], None, None),
     ("eye-rays", ["render", "run.yaml", "--set", "camera.resolution=[8192,4096]", "--set", "render.spp=2049"],
