@@ -42,8 +42,9 @@ def reference_task(token, cfg, scene, envmap, lights, pixels) -> dict:
     def body(run):
         from lightcuts.integrators.registry import make_integrator
 
-        forest = run.forest(lights, None) if run.plan.integrator.trait("forest", False) else None
-        ref = make_integrator(cfg, run.plan.integrator).reference().render(
+        reference = make_integrator(cfg, run.plan.integrator).reference()
+        forest = run.forest(reference, lights, None) if run.plan.integrator.trait("forest", False) else None
+        ref = reference.render(
             run.scene, run.caster, lights, None, forest=forest, envmap=envmap, seed=cfg.seed, pixels=pixels)
         return {"image": ref.image[:, 0], "shadow_rays": int(ref.shadow_rays)}
 

@@ -171,7 +171,7 @@ def render_window(integrator, scene, caster, lights: dict, trees: dict | None, *
         raise LightcutsError(f"render.ray_caster: {type(caster).__name__} cannot be called from kernels; "
                              f"use a kernel-callable caster such as 'embree'")
     if forest is None:
-        forest = integrator.forest(lights, trees)
+        forest = integrator.forest(lights, trees, scene)
     sx, sy = strata(integrator.spp)
     surfaces = tuple(kernel_array(a, np.float64) for a in (scene.face_normals, scene.albedo))
     surfaces += (scene.texture_data(),) + tuple(kernel_array(a, np.float64) for a in (

@@ -211,7 +211,7 @@ class Path(Integrator):
                                      f"leave {key} out or use render.integrator: lightcuts")
         return super().settings(cfg)
 
-    def forest(self, lights: dict, trees: dict | None):
+    def forest(self, lights: dict, trees: dict | None, scene):
         """None: it renders without a light forest."""
         return None
 

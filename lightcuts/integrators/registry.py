@@ -44,7 +44,7 @@ from lightcuts.integrators import MAX_CUT
 
 INTEGRATORS: Registry = Registry("integrator", group="lightcuts.integrators",
                                  builtins=("lightcuts.integrators.lightcut", "lightcuts.integrators.multidim.render",
-                                           "lightcuts.integrators.path"))
+                                           "lightcuts.integrators.path", "lightcuts.integrators.stochastic"))
 
 
 def check_count(value, key: str, hi: int | None = None) -> int:
@@ -93,11 +93,17 @@ class Integrator:
         ``render.integrator.<name>``)."""
         return declaration(type(self))["params"][name].check(value, f"render.integrator.{name}")
 
-    def forest(self, lights: dict, trees: dict | None):
+    def forest(self, lights: dict, trees: dict | None, scene):
         """The light forest its renders take (lightcuts.integrators.forest.build_forest of the lights and
-        trees; a reference's of the lights alone), or None if it uses none."""
+        trees; a reference's of the lights alone), or None if it uses none; ``scene`` : the Scene
+        rendered (for lights that are its triangles). LightcutsError for a set of triangle lights
+        (``lights.direct.source: triangles``): the forest's lights are points."""
         from lightcuts.integrators.forest import build_forest
+        from lightcuts.lights.triangles import leading_triangles
 
+        if any(leading_triangles(ls) for ls in lights.values()):
+            raise LightcutsError(f"lights.direct.source: integrator {type(self).__name__} renders point lights "
+                                 f"only, not the emitting triangles")
         return build_forest(lights, None if self.brute_force else trees)
 
     def reference(self) -> "Integrator":

@@ -92,13 +92,26 @@ class Render:
         return f"<Render {self.summary()}>"
 
 
+def check_reference_lights(cfg, key: str) -> None:
+    """LightcutsError naming ``key`` (the option that asks for the all-lights reference) when the
+    config's lights are not points it can sum: the emitting triangles of ``lights.direct.source:
+    triangles`` are integrated by sampling alone."""
+    from lightcuts.errors import LightcutsError
+
+    if cfg.lights.direct.source == "triangles":
+        raise LightcutsError(f"{key}: the all-lights reference sums point lights, not the emitting triangles of "
+                             "lights.direct.source: triangles; compare against a path tracer (lightcuts reference "
+                             "CONFIG)")
+
+
 def check_reference(cfg, integrator) -> None:
     """LightcutsError unless the brute-force reference measures this run: the plan's ``integrator``
     must have one (its ``reference`` trait), and it is the image of one VPL set without the
     compensation, so passes > 1 and compensation have none (their reference is a path tracer's:
-    ``lightcuts reference``)."""
+    ``lightcuts reference``), nor triangle lights (:func:`check_reference_lights`)."""
     from lightcuts.errors import LightcutsError
 
+    check_reference_lights(cfg, "--reference")
     if not integrator.trait("reference", False):
         raise LightcutsError(f"--reference: integrator {integrator.name!r} has no brute-force reference; "
                              f"compare it with another run or a path tracer (lightcuts reference CONFIG)")

@@ -479,6 +479,7 @@ def test_a_run_builds_its_light_forest_once_for_its_tiles():
     """Run.forest: one forest per (lights, trees) the tiles share, a new one for other lights; the
     tiles' bytes with it are the local ones (the tests above)."""
     from lightcuts.distributed.worker import Run
+    from lightcuts.integrators.lightcut import Lightcuts
     from lightcuts.lights.direct import direct_lights
     from lightcuts.scene.cornell import cornell_box
     from lightcuts.trees import build_tree
@@ -487,8 +488,10 @@ def test_a_run_builds_its_light_forest_once_for_its_tiles():
     lights = {"oriented": direct_lights(scene, 64, seed=1)}
     trees = {"oriented": build_tree(lights["oriented"], "agglomerative", seed=1)}
     run = Run(None, scene, None, None, 0.0)
-    f = run.forest(lights, trees)
-    assert run.forest(lights, trees) is f and len(f.light_f) == 64
-    assert run.forest(lights, None) is not f and run.forest(lights, None) is run.forest(lights, None)
+    integ = Lightcuts()
+    ref = integ.reference()
+    f = run.forest(integ, lights, trees)
+    assert run.forest(integ, lights, trees) is f and len(f.light_f) == 64
+    assert run.forest(ref, lights, None) is not f and run.forest(ref, lights, None) is run.forest(ref, lights, None)
     other = {"oriented": direct_lights(scene, 32, seed=2)}
-    assert len(run.forest(other, {"oriented": build_tree(other["oriented"], "agglomerative", seed=1)}).light_f) == 32
+    assert len(run.forest(integ, other, {"oriented": build_tree(other["oriented"], "agglomerative", seed=1)}).light_f) == 32
