@@ -170,7 +170,7 @@ def compare(config, builders=None, metrics=None, *, pixels: int = DEFAULT_PIXELS
     rows = resolve_rows(cfg, builders, metrics, keys=("builders", "metrics"))
     plans = [plan_run(cfg, render=True, tree=spec) for _, spec in rows]
     if pixels:
-        check_reference_lights(cfg, "pixels")
+        check_reference_lights(cfg, "pixels", "give pixels=0 (no error columns) or ")
     labels = [label for label, _ in rows]
     width, height = image_size(cfg)
     sample = sample_pixels(width, height, cfg.render.crop, pixels, cfg.seed) if pixels else None

@@ -102,7 +102,7 @@ def run_compare(args) -> dict:
     rows = resolve_rows(cfg, args.builders, args.metrics)
     plans = [plan_run(cfg, render=True, tree=spec) for _, spec in rows]
     if args.pixels:
-        check_reference_lights(cfg, f"--pixels {args.pixels}")
+        check_reference_lights(cfg, f"--pixels {args.pixels}", "give --pixels 0 (no error columns) or ")
     if args.mitsuba and args.mitsuba_passes:  # the converging render's passes, checked as a render's
         try:
             plan_run(converging_config(cfg, plans[0].integrator, args.mitsuba_passes), render=True, tree=rows[0][1])

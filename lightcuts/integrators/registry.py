@@ -21,7 +21,9 @@ one cut serves, ``eye ray`` or ``pixel``; ``lightcuts scaling --gather`` compare
 ``reference`` (it has a brute-force reference: ``--reference`` and compare's errors), ``forest`` (it
 renders from the light forest of the lights and trees, :meth:`Integrator.forest`, which a cluster's
 worker makes once for all its tiles; compare, whose rows differ by their trees, refuses an
-integrator without it) and ``kernels``: the module whose ``_render_band`` kernel its renders use and
+integrator without it), ``triangle_lights`` (it renders the emitting triangles that
+``lights.direct.source: triangles`` makes the direct lights; the plan refuses that source otherwise)
+and ``kernels``: the module whose ``_render_band`` kernel its renders use and
 whose ``warm_kernels()`` compiles it, which the commands compile in a second process while the
 lights and trees are made (lightcuts.pipeline.warmup). Adding an integrator is a subclass of
 :class:`Integrator` registered with ``INTEGRATORS.register`` (or an entry point in group
@@ -31,7 +33,9 @@ Entries: ``lightcuts``, a lightcut per eye ray through every light tree (Walter 
 lightcuts.integrators.lightcut); ``multidimensional``, one cut per pixel through the product of a gather
 tree over the pixel's eye-ray hits and the light trees (Walter et al. 2006,
 lightcuts.integrators.multidim); ``path``, a path tracer with lightcuts' own BRDF over the scene's
-emitting triangles (lightcuts.integrators.path), which uses no lights or trees.
+emitting triangles (lightcuts.integrators.path), which uses no lights or trees; ``stochastic-lightcuts``,
+a cut by importance per eye ray and one light drawn below each cut node (Yuksel 2019,
+lightcuts.integrators.stochastic).
 """
 
 from __future__ import annotations
@@ -67,12 +71,14 @@ class Integrator:
 
     spp : eye rays per pixel (stratified, jittered: lightcuts.integrators.camera). ``eps``, ``max_cut``
     (the bound of a pixel's cut per eye ray, in its ``cut_unit``) and ``brute_force`` (it is a
-    reference) are what its RenderResults record.
+    reference) are what its RenderResults record; ``clamp``: it clamps indirect VPLs (report.json's
+    ``clamping.enabled``).
     """
 
     eps = 0.0
     max_cut = 0
     brute_force = False
+    clamp = False
 
     def __init__(self, *, spp: int = 1):
         self.spp = check_count(spp, "render.spp")

@@ -10,7 +10,7 @@ corners, with every tree node's box refitted to the triangles below it. The eye 
 start are every integrator's (lightcuts.integrators.camera, eye); random numbers are a hash of
 (seed, pixel, eye ray, cut slot, dimension), so an image does not depend on the thread count, the
 bands, a crop window or the tiles of a cluster. Clamping (``render.clamp``) applies to indirect VPLs
-as in the lightcut. The integrator is :class:`StochasticLightcuts` (registered as
+as in the lightcut, off unless the config sets it. The integrator is :class:`StochasticLightcuts` (registered as
 ``stochastic-lightcuts``); its brute-force reference is the lightcut's all-lights reference over the
 same lights, the sum this estimator is unbiased for (with point lights).
 
@@ -201,13 +201,14 @@ class StochasticLightcuts(Integrator):
     importance and one light drawn below each, unbiased for the sum over the lights.
 
     Its kernel is this module's. Settings: spp; clamp, clamp_min_distance (``render.clamp``) as the
-    lightcut's clamping of indirect VPLs; visibility : False casts no shadow rays; max_cut : its own
-    parameter. Renders the emitting triangles themselves when the lights stage made them the direct
-    lights (``lights.direct.source: triangles``). Its reference is the lightcut's all-lights
-    reference over the same lights. A pinhole camera only.
+    lightcut's clamping of indirect VPLs, off unless the config sets ``render.clamp.enabled``
+    (:meth:`settings`); visibility : False casts no shadow rays; max_cut : its own parameter.
+    Renders the emitting triangles themselves when the lights stage made them the direct lights
+    (``lights.direct.source: triangles``). Its reference is the lightcut's all-lights reference over
+    the same lights. A pinhole camera only.
     """
 
-    def __init__(self, *, spp: int = 1, max_cut: int = DEFAULT_MAX_CUT, clamp: bool = True,
+    def __init__(self, *, spp: int = 1, max_cut: int = DEFAULT_MAX_CUT, clamp: bool = False,
                  clamp_min_distance: float = 0.05, visibility: bool = True):
         super().__init__(spp=spp)
         self.max_cut = self.param("max_cut", max_cut)
@@ -217,8 +218,12 @@ class StochasticLightcuts(Integrator):
 
     @classmethod
     def settings(cls, cfg) -> dict:
+        """spp and the clamping: ``render.clamp.enabled`` where the config gives it, else off (the
+        lightcut's default is on; off is unbiased for the VPL set and gave the lower error against a
+        path tracer: docs/performance.md, "Stochastic lightcuts")."""
         r = cfg.render
-        return {**super().settings(cfg), "clamp": r.clamp.enabled, "clamp_min_distance": r.clamp.min_distance}
+        clamp = r.clamp.enabled if "enabled" in r.clamp.model_fields_set else False
+        return {**super().settings(cfg), "clamp": clamp, "clamp_min_distance": r.clamp.min_distance}
 
     def forest(self, lights: dict, trees: dict | None, scene) -> SampledForest:
         """:func:`sampled_forest` of the lights and trees in ``scene``."""

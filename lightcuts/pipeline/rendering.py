@@ -92,16 +92,16 @@ class Render:
         return f"<Render {self.summary()}>"
 
 
-def check_reference_lights(cfg, key: str) -> None:
+def check_reference_lights(cfg, key: str, instead: str = "") -> None:
     """LightcutsError naming ``key`` (the option that asks for the all-lights reference) when the
     config's lights are not points it can sum: the emitting triangles of ``lights.direct.source:
-    triangles`` are integrated by sampling alone."""
+    triangles`` are integrated by sampling alone. ``instead``: what else the caller can do."""
     from lightcuts.errors import LightcutsError
 
     if cfg.lights.direct.source == "triangles":
         raise LightcutsError(f"{key}: the all-lights reference sums point lights, not the emitting triangles of "
-                             "lights.direct.source: triangles; compare against a path tracer (lightcuts reference "
-                             "CONFIG)")
+                             f"lights.direct.source: triangles; {instead}compare against a path tracer "
+                             "(lightcuts reference CONFIG)")
 
 
 def check_reference(cfg, integrator) -> None:
@@ -213,7 +213,8 @@ def _run(cfg, plan, source, reference: bool, progress: bool, warmup: list, runne
         "resolution": [int(result.image.shape[1]), int(result.image.shape[0])],
         "crop": cfg.render.crop,
         "spp": cfg.render.spp,
-        "clamping": {"enabled": cfg.render.clamp.enabled, "min_distance": cfg.render.clamp.min_distance,
+        "clamping": {"enabled": make_integrator(cfg, plan.integrator).clamp,
+                     "min_distance": cfg.render.clamp.min_distance,
                      "clamped_energy_fraction": float(passes.clamped_fraction)},
         "compensation": cfg.render.compensation,
         "continuation_rays": cfg.render.continuation_rays,

@@ -217,6 +217,16 @@ def test_the_image_does_not_depend_on_the_threads(box):
     assert other.image.tobytes() != many.image.tobytes()
 
 
+def test_clamping_is_off_unless_the_config_sets_it():
+    """render.clamp.enabled as the config gives it; left out, the lightcut clamps and this does not."""
+    kitchen = ROOT / "configs" / "kitchen.yaml"
+    slc = {"render.integrator": "stochastic-lightcuts"}
+    assert make_integrator(lightcuts.load_config(kitchen)).clamp
+    assert not make_integrator(lightcuts.load_config(kitchen, **slc)).clamp
+    assert make_integrator(lightcuts.load_config(kitchen, **slc, **{"render.clamp.enabled": True})).clamp
+    assert not make_integrator(lightcuts.load_config(kitchen, **slc, **{"render.clamp.min_distance": 0.1})).clamp
+
+
 def test_a_run_through_the_pipeline_with_passes():
     """lightcuts.render with the integrator: its cut unit, passes averaged, a clamp that removes light."""
     cfg = _config(**{"render.integrator": {"type": "stochastic-lightcuts", "max_cut": 8}, "render.passes": 2,
@@ -224,4 +234,5 @@ def test_a_run_through_the_pipeline_with_passes():
     r = lightcuts.render(cfg, progress=False)
     assert r.report["cut_size_unit"] == "cut nodes per eye ray" and r.cut_size.max() <= 8
     assert len(r.report["passes"]) == 2 and r.report["clamping"]["clamped_energy_fraction"] > 0
+    assert r.report["clamping"]["enabled"] is True
     assert r.report["plugins"]["integrator"] == {"type": "stochastic-lightcuts", "max_cut": 8}
