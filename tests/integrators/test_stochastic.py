@@ -143,6 +143,8 @@ def test_triangle_lights_are_the_emitting_triangles(lamps):
     np.testing.assert_array_equal(f.light_tri, np.arange(42))
     corners = f.tri_geo[:, :3, None] + np.stack([np.zeros((42, 3)), f.tri_geo[:, 3:6], f.tri_geo[:, 6:]], axis=2)
     np.testing.assert_allclose(corners.mean(axis=2), ls.position)
+    rec, roots = f.sampler[0], f.sampler[3]  # the root's box holds every triangle, not only the centroids
+    assert np.all(rec[roots[0], :3] <= corners.min(axis=(0, 2))) and np.all(rec[roots[0], 3:6] >= corners.max(axis=(0, 2)))
 
 
 @pytest.mark.parametrize("max_cut", [1, 8])
