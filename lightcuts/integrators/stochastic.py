@@ -2,15 +2,16 @@ r"""The stochastic lightcuts integrator (Yuksel, "Stochastic lightcuts", HPG 201
 of at most ``max_cut`` nodes of the light trees, chosen by importance, and one light drawn below each
 cut node (lightcuts.integrators.stochastic_cut).
 
-Its light forest (:class:`SampledForest`, made once per lights and trees: :meth:`StochasticLightcuts.forest`)
-is the light sampler's records over the render's trees (lightcuts.integrators.light_sampler) beside
-the light rows the lightcut shades with (lightcuts.integrators.forest), and, when the lights stage made
-the emitting triangles the direct lights (``lights.direct.source: triangles``), those triangles'
-corners, with every tree node's box refitted to the triangles below it. The eye rays and their
-start are every integrator's (lightcuts.integrators.camera, eye); random numbers are a hash of
-(seed, pixel, eye ray, cut slot, dimension), so an image does not depend on the thread count, the
-bands, a crop window or the tiles of a cluster. Clamping (``render.clamp``) applies to indirect VPLs
-as in the lightcut, off unless the config sets it. The integrator is :class:`StochasticLightcuts` (registered as
+Its light forest (:class:`SampledForest`, made once per lights and trees:
+:meth:`StochasticLightcuts.forest`) is the light sampler's records over the render's trees
+(lightcuts.integrators.light_sampler) beside the light rows the lightcut shades with
+(lightcuts.integrators.forest), and, when the lights stage made the emitting triangles the direct
+lights (``lights.direct.source: triangles``), those triangles' corners, with every tree node's box
+refitted to the triangles below it. The eye rays and their start are every integrator's
+(lightcuts.integrators.camera, eye); random numbers are a hash of (seed, pixel, eye ray, cut slot,
+dimension), so an image does not depend on the thread count, the bands, a crop window or the tiles
+of a cluster. Clamping (``render.clamp``) applies to indirect VPLs as in the lightcut, off unless
+the config sets it. The integrator is :class:`StochasticLightcuts` (registered as
 ``stochastic-lightcuts``); its brute-force reference is the lightcut's all-lights reference over the
 same lights, the sum this estimator is unbiased for (with point lights).
 
