@@ -207,9 +207,13 @@ class CameraConfig(Strict):
 
 
 class DirectLights(Strict):
-    """Emissive triangles sampled into ``count`` oriented lights (area-weighted, stratified)."""
+    """Direct light from the emitting triangles: ``source: samples`` places ``count`` oriented lights
+    on them (area-weighted, stratified); ``source: triangles`` makes every emitting triangle one light
+    (``count`` is then not read), which an integrator with the ``triangle_lights`` trait samples a
+    point of per shading point (lightcuts.lights.triangles)."""
 
     count: LightCount = 1024
+    source: Literal["samples", "triangles"] = "samples"
 
 
 class IndirectLights(Strict):

@@ -49,11 +49,11 @@ class Run:
     forests: dict = field(default_factory=dict)
 
     def forest(self, integrator, lights: dict, trees: dict | None):
-        """``integrator.forest(lights, trees, scene)`` (the run's integrator, or with ``trees`` None
-        its reference), made once for all tiles of the same lights and trees (the worker keeps one
-        copy of the shipped objects, so identity tells them apart; the entry holds them, so their ids
-        cannot be reused)."""
-        key = trees is None
+        """The light forest ``integrator`` renders from (its ``forest(lights, trees, scene)`` hook), made
+        once for all tiles of the same lights and trees and the same kind of integrator (the worker
+        keeps one copy of the shipped objects, so identity tells them apart; the entry holds them, so
+        their ids cannot be reused)."""
+        key = (type(integrator), trees is None)
         entry = self.forests.get(key)
         if entry is None or entry[0] is not lights or entry[1] is not trees:
             entry = self.forests[key] = (lights, trees, integrator.forest(lights, trees, self.scene))

@@ -20,10 +20,13 @@ one cut serves, ``eye ray`` or ``pixel``; ``lightcuts scaling --gather`` compare
 ``camera.aperture > 0`` otherwise), ``converging`` (it takes ``render.compensation``,
 ``render.representatives`` and ``render.continuation_rays``; the plan refuses them otherwise),
 ``reference`` (it has a brute-force reference: ``--reference`` and compare's errors), ``forest`` (it
-renders from the light forest of the config's lights and trees; compare, whose rows differ by their
-trees, refuses an integrator without it) and ``kernels``: the module whose ``_render_band`` kernel
-its renders use and whose ``warm_kernels()`` compiles it, which the commands compile in a second
-process while the lights and trees are made (lightcuts.pipeline.warmup). Adding an integrator is a subclass of
+renders from the light forest of the lights and trees, :meth:`Integrator.forest`, which a cluster's
+worker makes once for all its tiles; compare, whose rows differ by their trees, refuses an
+integrator without it), ``triangle_lights`` (it renders the emitting triangles that
+``lights.direct.source: triangles`` makes the direct lights; the plan refuses that source otherwise)
+and ``kernels``: the module whose ``_render_band`` kernel its renders use and
+whose ``warm_kernels()`` compiles it, which the commands compile in a second process while the
+lights and trees are made (lightcuts.pipeline.warmup). Adding an integrator is a subclass of
 :class:`Integrator` registered with ``INTEGRATORS.register`` (or an entry point in group
 ``lightcuts.integrators`` naming the class).
 
@@ -32,7 +35,9 @@ lightcuts.integrators.lightcut); ``multidimensional``, one cut per pixel through
 tree over the pixel's eye-ray hits and the light trees (Walter et al. 2006,
 lightcuts.integrators.multidim); ``path``, a path tracer with lightcuts' own BRDF over the scene's
 emitting triangles (lightcuts.integrators.path), which uses none of the config's lights or trees
-(with ``light_sampler: tree``, a tree of its own over the emitting triangles).
+(with ``light_sampler: tree``, a tree of its own over the emitting triangles); ``stochastic-lightcuts``,
+a cut by importance per eye ray and one light drawn below each cut node (Yuksel 2019,
+lightcuts.integrators.stochastic).
 """
 
 from __future__ import annotations
@@ -46,7 +51,7 @@ from lightcuts.integrators import MAX_CUT
 
 INTEGRATORS: Registry = Registry("integrator", group="lightcuts.integrators",
                                  builtins=("lightcuts.integrators.lightcut", "lightcuts.integrators.multidim.render",
-                                           "lightcuts.integrators.path"))
+                                           "lightcuts.integrators.path", "lightcuts.integrators.stochastic"))
 
 
 def check_count(value, key: str, hi: int | None = None) -> int:
@@ -69,12 +74,14 @@ class Integrator:
 
     spp : eye rays per pixel (stratified, jittered: lightcuts.integrators.camera). ``eps``, ``max_cut``
     (the bound of a pixel's cut per eye ray, in its ``cut_unit``) and ``brute_force`` (it is a
-    reference) are what its RenderResults record.
+    reference) are what its RenderResults record; ``clamp``: it clamps indirect VPLs (report.json's
+    ``clamping.enabled``).
     """
 
     eps = 0.0
     max_cut = 0
     brute_force = False
+    clamp = False
 
     def __init__(self, *, spp: int = 1):
         self.spp = check_count(spp, "render.spp")
@@ -102,9 +109,15 @@ class Integrator:
     def forest(self, lights: dict, trees: dict | None, scene):
         """What its renders of ``scene`` take, made once for many windows (a cluster's worker keeps it
         for all its tiles): the light forest (lightcuts.integrators.forest.build_forest of the lights
-        and trees; a reference's of the lights alone), or the integrator's own per-run data."""
+        and trees; a reference's of the lights alone), or the integrator's own per-run data.
+        LightcutsError for a set of triangle lights (``lights.direct.source: triangles``): the
+        forest's lights are points."""
         from lightcuts.integrators.forest import build_forest
+        from lightcuts.lights.triangles import leading_triangles
 
+        if any(leading_triangles(ls) for ls in lights.values()):
+            raise LightcutsError(f"lights.direct.source: integrator {type(self).__name__} renders point lights "
+                                 f"only, not the emitting triangles")
         return build_forest(lights, None if self.brute_force else trees)
 
     def sampler_record(self, forest) -> dict:
@@ -174,21 +187,26 @@ class CutIntegrator(Integrator):
         return {"clamp": self.clamp, "clamp_vpls": self.clamp_vpls, "clamp_min_distance": self.clamp_min_distance}
 
     def clamp_radius(self, scene, forest) -> float:
-        """The clamping radius of indirect VPLs in the scene, world units (0: no clamping):
-        ``sqrt(min(clamp_vpls, N / LIT_AREA_SHARES)) * forest.vpl_spacing`` for the forest's N indirect
-        VPLs (the radius of a disc holding about ``clamp_vpls`` VPLs, and at most 1 / LIT_AREA_SHARES
-        of them; docs/math.md, "Clamping"), or ``clamp_min_distance * scene.diagonal`` when that is set."""
-        if not self.clamp:
-            return 0.0
-        if self.clamp_min_distance is not None:
-            return float(self.clamp_min_distance * scene.diagonal)
-        if forest is None:
-            return 0.0
-        return float(math.sqrt(min(self.clamp_vpls, forest.vpl_count / LIT_AREA_SHARES)) * forest.vpl_spacing)
+        """The clamping radius of indirect VPLs in the scene, world units (:func:`clamp_radius`)."""
+        return clamp_radius(self.clamp, self.clamp_vpls, self.clamp_min_distance, scene, forest)
 
     def clamp_d2(self, scene, forest) -> float:
         """The squared clamping radius (:meth:`clamp_radius`)."""
         return self.clamp_radius(scene, forest) ** 2
+
+
+def clamp_radius(clamp: bool, clamp_vpls: float, clamp_min_distance: float | None, scene, forest) -> float:
+    """The clamping radius of indirect VPLs in the scene, world units (0: no clamping):
+    ``sqrt(min(clamp_vpls, N / LIT_AREA_SHARES)) * forest.vpl_spacing`` for the forest's N indirect
+    VPLs (the radius of a disc holding about ``clamp_vpls`` VPLs, and at most 1 / LIT_AREA_SHARES
+    of them; docs/math.md, "Clamping"), or ``clamp_min_distance * scene.diagonal`` when that is set."""
+    if not clamp:
+        return 0.0
+    if clamp_min_distance is not None:
+        return float(clamp_min_distance * scene.diagonal)
+    if forest is None:
+        return 0.0
+    return float(math.sqrt(min(clamp_vpls, forest.vpl_count / LIT_AREA_SHARES)) * forest.vpl_spacing)
 
 
 def make_integrator(cfg, integrator=None) -> Integrator:

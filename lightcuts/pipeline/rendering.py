@@ -92,13 +92,26 @@ class Render:
         return f"<Render {self.summary()}>"
 
 
+def check_reference_lights(cfg, key: str, instead: str = "") -> None:
+    """LightcutsError naming ``key`` (the option that asks for the all-lights reference) when the
+    config's lights are not points it can sum: the emitting triangles of ``lights.direct.source:
+    triangles`` are integrated by sampling alone. ``instead``: what else the caller can do."""
+    from lightcuts.errors import LightcutsError
+
+    if cfg.lights.direct.source == "triangles":
+        raise LightcutsError(f"{key}: the all-lights reference sums point lights, not the emitting triangles of "
+                             f"lights.direct.source: triangles; {instead}compare against a path tracer "
+                             "(lightcuts reference CONFIG)")
+
+
 def check_reference(cfg, integrator) -> None:
     """LightcutsError unless the brute-force reference measures this run: the plan's ``integrator``
     must have one (its ``reference`` trait), and it is the image of one VPL set without the
     compensation, so passes > 1 and compensation have none (their reference is a path tracer's:
-    ``lightcuts reference``)."""
+    ``lightcuts reference``), nor triangle lights (:func:`check_reference_lights`)."""
     from lightcuts.errors import LightcutsError
 
+    check_reference_lights(cfg, "--reference")
     if not integrator.trait("reference", False):
         raise LightcutsError(f"--reference: integrator {integrator.name!r} has no brute-force reference; "
                              f"compare it with another run or a path tracer (lightcuts reference CONFIG)")
@@ -202,7 +215,7 @@ def _run(cfg, plan, source, reference: bool, progress: bool, warmup: list, runne
         "resolution": [int(result.image.shape[1]), int(result.image.shape[0])],
         "crop": cfg.render.crop,
         "spp": cfg.render.spp,
-        "clamping": clamping_record(cfg.render.clamp, passes),
+        "clamping": clamping_record(cfg.render.clamp, passes, make_integrator(cfg, plan.integrator).clamp),
         "compensation": cfg.render.compensation,
         "continuation_rays": cfg.render.continuation_rays,
         "representatives": cfg.render.representatives,
@@ -247,12 +260,13 @@ def _run(cfg, plan, source, reference: bool, progress: bool, warmup: list, runne
     return Render(cfg, passes.image, passes.cut_size, report, ref_image)
 
 
-def clamping_record(clamp, passes) -> dict:
-    """report.json's ``clamping``: the settings of ``render.clamp`` that its mode reads, the radius
+def clamping_record(clamp, passes, enabled: bool) -> dict:
+    """report.json's ``clamping``: whether the integrator clamps (``enabled``: the config's setting,
+    or the integrator's default when the config gives none), the settings of ``render.clamp`` that its mode reads, the radius
     pass 0 clamped within (world units, 0 when off; each pass's is in its ``passes`` record) and
     the fraction of the reflected light clamping removed (the passes' mean)."""
     setting = {"density": "vpls", "diagonal": "min_distance"}[clamp.mode]
-    return {"enabled": clamp.enabled, "mode": clamp.mode, setting: getattr(clamp, setting),
+    return {"enabled": bool(enabled), "mode": clamp.mode, setting: getattr(clamp, setting),
             "radius": float(passes.records[0]["clamp_radius"]),
             "clamped_energy_fraction": float(passes.clamped_fraction)}
 

@@ -142,6 +142,15 @@ CASES = [
     ("config-fov-180", ["render", "bad.yaml"], _config(camera__fov=180), None),
     ("config-negative-count", ["render", "bad.yaml"], _config(lights__direct__count=-1), None),
     ("config-max-cut-0", ["render", "bad.yaml"], _config(render__max_cut=0), None),
+    # stochastic lightcuts and triangle lights
+    ("stochastic-max-cut-0", ["render", "bad.yaml"],
+     _config(render__integrator={"type": "stochastic-lightcuts", "max_cut": 0}), None),
+    ("direct-source-unknown", ["render", "bad.yaml"], _config(lights__direct__source="points"), None),
+    ("direct-triangles-lightcuts", ["render", "bad.yaml"], _config(lights__direct__source="triangles"), None),
+    ("direct-triangles-reference", ["render", "bad.yaml", "--reference"],
+     _config(lights__direct__source="triangles", render__integrator="stochastic-lightcuts"), None),
+    ("direct-triangles-compare-pixels", ["compare", "bad.yaml"],
+     _config(lights__direct__source="triangles", render__integrator="stochastic-lightcuts"), None),
     # procedural scenes
     ("procedural-unknown-key", ["render", "bad.yaml"],
      _config(scene={"procedural": {"type": "kitchen", "triangels": 20000}}), None),

@@ -252,7 +252,7 @@ def test_readme_table_of_limits_is_lightcuts_limits():
 @pytest.mark.parametrize("key, hint", [
     ("render.epss", "(did you mean render.eps?)"), ("rendr.eps", "(did you mean render?)"),
     ("camera.resolutoin", "(did you mean camera.resolution?)"),
-    ("lights.direct.zzz", "(known: count)"),
+    ("lights.direct.zzz", "(known: count, source)"),
 ])
 def test_unknown_key_suggests_the_nearest(tmp_path, key, hint):
     p = write(tmp_path, "scene: {builtin: cornell}\n")

@@ -37,6 +37,9 @@ CONFIGS = {"cornell": ("cornell.yaml", SMALL),
                                              "render.integrator": "{type: path, max_depth: 8}"}),
            "cornell-path-tree": ("cornell.yaml", {**SMALL, "render.spp": "4", "render.passes": "2",
                                                   "render.integrator": "{type: path, max_depth: 8, light_sampler: tree}"}),
+           "cornell-stochastic": ("cornell.yaml", {**SMALL, "render.spp": "2", "render.passes": "2",
+                                                   "lights.direct.source": "triangles",
+                                                   "render.integrator": "{type: stochastic-lightcuts, max_cut: 8}"}),
            "kitchen-passes": ("kitchen.yaml", {**SMALL, "scene.procedural.triangles": "20000", "render.passes": "3",
                                                 "render.compensation": "true"}),
            "kitchen-slow": ("kitchen.yaml", {**SMALL, "scene.procedural.triangles": "20000",
@@ -111,7 +114,8 @@ def test_the_python_api_renders_and_compares_on_a_client_or_an_address(cluster):
 
 
 @SPAWNS
-@pytest.mark.parametrize("name", ["cornell", "kitchen", "cornell-multidimensional", "cornell-path", "cornell-path-tree"])
+@pytest.mark.parametrize("name", ["cornell", "kitchen", "cornell-multidimensional", "cornell-path", "cornell-path-tree",
+                                  "cornell-stochastic"])
 def test_tiles_give_the_local_bytes_whatever_their_size(cluster, name):
     from lightcuts.distributed.worker import runs
 
