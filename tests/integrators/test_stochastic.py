@@ -80,7 +80,7 @@ def test_unbiased_for_the_sum_over_its_lights(box, max_cut):
     scene, caster, lights, trees = box
     integ = StochasticLightcuts(spp=2, max_cut=max_cut, clamp=False)
     ref = integ.reference()
-    total = _differences(integ, ref, scene, caster, lights, trees, 48).mean(axis=(1, 2))
+    total = _differences(integ, ref, scene, caster, lights, trees, 72).mean(axis=(1, 2))
     level = _lum(ref.render(scene, caster, lights, None).image).mean()
     _within_3_se(total, level)
     integ32 = StochasticLightcuts(spp=32, max_cut=max_cut, clamp=False)
