@@ -110,8 +110,8 @@ def test_an_integrator_registered_later_is_a_row_with_its_parameters(config):
         @declare(lens=False, cut_unit="path vertices per eye ray", kernels="lightcuts.integrators.path",
                  reference=False, forest=False, params=params)
         class SamplingPath(PathIntegrator):
-            def __init__(self, *, spp=1, max_depth=64, light_sampler="power"):
-                super().__init__(spp=spp, max_depth=max_depth)
+            def __init__(self, *, spp=1, max_depth=64, light_sampler="power", tree=None):
+                super().__init__(spp=spp, max_depth=max_depth, tree=tree)
                 self.uses_trees = self.param("light_sampler", light_sampler) == "tree"
 
         rows = _rows(config, "sampling-path:light_sampler=tree", "sampling-path:light_sampler=power",
