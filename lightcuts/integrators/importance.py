@@ -43,8 +43,8 @@ REC_LO, REC_HI, REC_COS, REC_PHI, REC_WIDTH = 0, 3, 6, 7, 8
 ONE_BELOW = 1.0 - 2.0 ** -53
 # Cosine of the emission spread of one-sided cosine emitters (triangles, oriented VPLs): 90 degrees.
 _COS_EMISSION = 0.0
-# Floor of a node's squared distance, relative to its squared distance from the origin scale (a point
-# light at the shading point would otherwise get an infinite importance).
+# Floor of a node's squared distance, world units squared (a point light at the shading point would
+# otherwise get an infinite importance).
 _D2_FLOOR = 1e-30
 
 
