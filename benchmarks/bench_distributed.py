@@ -112,7 +112,7 @@ def tile_seconds(cfg, plan, scene, envmap, lights, trees, windows, spp: int = 1)
         t0 = time.perf_counter()
         caster = plan.make_caster(scene)
         run = Run(plan, scene, envmap, caster, 0.0)
-        forest = run.forest(lights, trees) if plan.integrator.trait("forest", False) else None
+        forest = run.forest(integ, lights, trees)
         setup = time.perf_counter() - t0
         inputs = dict(forest=forest, envmap=envmap, seed=c.seed)
         integ.render(scene, caster, lights, trees, crop=(0, 0, 1, 1), **inputs)  # the kernel loaded

@@ -47,8 +47,9 @@ def main() -> None:
     t0 = time.perf_counter()
     trees = plan.trees(lights)
     print(f"lights {sum(len(v) for v in lights.values())}, trees {time.perf_counter() - t0:.1f} s")
-    common = dict(camera=camera, seed=cfg.seed, clamp=cfg.render.clamp.enabled,
-                  clamp_min_distance=cfg.render.clamp.min_distance)
+    clamp = cfg.render.clamp
+    common = dict(camera=camera, seed=cfg.seed, clamp=clamp.enabled, clamp_vpls=clamp.vpls,
+                  clamp_min_distance=clamp.min_distance if clamp.mode == "diagonal" else None)
     cut = dict(eps=cfg.render.eps, max_cut=cfg.render.max_cut)
     # The multidimensional integrator's parameters from the config (render.integrator: {type:
     # multidimensional, representatives: R, gather_representatives: RG}), its defaults otherwise.

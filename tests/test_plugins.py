@@ -292,7 +292,7 @@ def test_integrator_contract(name, small_cornell):
 #: that take the keyword.
 BAD_SETTINGS = [("spp", 0, "render.spp"), ("spp", 2.5, "render.spp"), ("eps", float("nan"), "render.eps"),
                 ("eps", -0.1, "render.eps"), ("max_cut", 0, "render.max_cut"), ("max_cut", 1 << 21, "render.max_cut"),
-                ("clamp_min_distance", -1.0, "render.clamp.min_distance"),
+                ("clamp_min_distance", -1.0, "render.clamp.min_distance"), ("clamp_vpls", -1.0, "render.clamp.vpls"),
                 ("continuation_rays", 65, "render.continuation_rays"),
                 ("representatives", "random", "render.representatives"), ("aperture", float("inf"), "camera.aperture"),
                 ("focus_distance", 0.0, "camera.focus_distance")]
@@ -301,13 +301,15 @@ BAD_SETTINGS = [("spp", 0, "render.spp"), ("spp", 2.5, "render.spp"), ("eps", fl
 @pytest.mark.parametrize("name", INTEGRATORS.names())
 def test_integrator_refuses_bad_settings_when_made(name):
     """An integrator checks what it is given when it is made, not when it renders: a bad setting or
-    an own parameter out of its declared range is one LightcutsError line naming the config key."""
+    an own parameter out of its declared range (or not one of its choices) is one LightcutsError
+    line naming the config key."""
     import inspect
 
     cls = INTEGRATORS.get(name)
     takes = inspect.signature(cls).parameters
     params = INTEGRATORS.entry(name).params
-    own = [(p, decl.hi + 1, f"render.integrator.{p}") for p, decl in params.items()]
+    own = [(p, decl.hi + 1 if decl.choices is None else "none of them", f"render.integrator.{p}")
+           for p, decl in params.items()]
     cases = [c for c in BAD_SETTINGS if c[0] in takes and c[0] not in params] + own
     assert [c for c in cases if c[0] == "spp"] and all(p in takes for p, _, _ in own)
     for key, value, config_key in cases:

@@ -151,6 +151,7 @@ def compare(config, builders=None, metrics=None, *, pixels: int = DEFAULT_PIXELS
     """
     from lightcuts.pipeline.comparing import compare_run, resolve_rows, sample_pixels
     from lightcuts.pipeline.plan import plan_run
+    from lightcuts.pipeline.rendering import check_reference_lights
     from lightcuts.io import check_store_dir
     from lightcuts.limits import MAX_PIXELS, MAX_REFERENCE_SPP
     from lightcuts.report.compare_store import RowStore
@@ -168,6 +169,8 @@ def compare(config, builders=None, metrics=None, *, pixels: int = DEFAULT_PIXELS
         load_mitsuba()
     rows = resolve_rows(cfg, builders, metrics, keys=("builders", "metrics"))
     plans = [plan_run(cfg, render=True, tree=spec) for _, spec in rows]
+    if pixels:
+        check_reference_lights(cfg, "pixels", "give pixels=0 (no error columns) or ")
     labels = [label for label, _ in rows]
     width, height = image_size(cfg)
     sample = sample_pixels(width, height, cfg.render.crop, pixels, cfg.seed) if pixels else None

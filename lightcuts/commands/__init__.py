@@ -12,4 +12,4 @@ compile notice, the render kernel compiled in a second process). Stages never im
 """
 
 #: The command modules, in the order ``lightcuts --help`` lists them.
-COMMANDS = ("lights", "tree", "scaling", "render", "compare", "accel", "reference", "convert", "plugins")
+COMMANDS = ("lights", "tree", "scaling", "render", "compare", "study", "accel", "reference", "convert", "plugins")

@@ -81,6 +81,7 @@ def run_compare(args) -> dict:
     """The ``lightcuts compare`` command; returns the report dict (also written to report.json)."""
     from lightcuts.pipeline.comparing import compare_run, converging_config
     from lightcuts.pipeline.plan import plan_run
+    from lightcuts.pipeline.rendering import check_reference_lights
     from lightcuts.config import load_config
     from lightcuts.io import check_output_dir, run_dir
     from lightcuts.report.compare_store import RowStore
@@ -100,6 +101,8 @@ def run_compare(args) -> dict:
         load_mitsuba()  # one line naming the install command if Mitsuba is missing
     rows = resolve_rows(cfg, args.builders, args.metrics)
     plans = [plan_run(cfg, render=True, tree=spec) for _, spec in rows]
+    if args.pixels:
+        check_reference_lights(cfg, f"--pixels {args.pixels}", "give --pixels 0 (no error columns) or ")
     if args.mitsuba and args.mitsuba_passes:  # the converging render's passes, checked as a render's
         try:
             plan_run(converging_config(cfg, plans[0].integrator, args.mitsuba_passes), render=True, tree=rows[0][1])

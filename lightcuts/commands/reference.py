@@ -151,16 +151,20 @@ def _lightcuts_image(args, cfg, plan, scene, envmap, warmup: list) -> tuple[np.n
     """lightcuts' image of the run (all its passes), its figures (lights, seconds) and the pixels
     that see an emitter directly (:func:`lightcuts.integrators.primary.emitter_mask`)."""
     from lightcuts.pipeline.passes import render_passes
-    from lightcuts.pipeline.warmup import finish_warmup, start_render_warmup
+    from lightcuts.pipeline.rendering import image_seconds
+    from lightcuts.pipeline.warmup import compile_seconds, finish_warmup, start_render_warmup
     from lightcuts.integrators.primary import emitter_mask
 
     t0 = time.perf_counter()
     if plan.caster.trait("warm_render_kernel", False):
         warmup.append(start_render_warmup(plan.integrator.trait("kernels")))
     with plan.make_caster(scene) as caster:
+        t1, c1 = time.perf_counter(), compile_seconds()
         light_sets = plan.lights(scene, caster, envmap)
+        t2, c2 = time.perf_counter(), compile_seconds()
         trees = plan.trees(light_sets)
         t_pre = time.perf_counter() - t0
+        t_lights, t_trees = t2 - t1 - (c2 - c1), time.perf_counter() - t2 - (compile_seconds() - c2)
         result = render_passes(cfg, plan, scene, caster, envmap, desc=f"{cfg.name}: lightcuts",
                                progress=not args.no_progress, lights=light_sets, trees=trees,
                                before_render=lambda: finish_warmup(warmup[0] if warmup else None))
@@ -168,9 +172,11 @@ def _lightcuts_image(args, cfg, plan, scene, envmap, warmup: list) -> tuple[np.n
     return result.image, {"lights": {typ: len(ls) for typ, ls in light_sets.items()},
                           "lights_indirect": int(sum(int(ls.indirect.sum()) for ls in light_sets.values())),
                           "eps": cfg.render.eps, "spp": cfg.render.spp, "compensation": cfg.render.compensation,
-                          "continuation_rays": cfg.render.continuation_rays, "representatives": cfg.render.representatives, "passes": cfg.render.passes,
+                          "continuation_rays": cfg.render.continuation_rays,
+                          "representatives": cfg.render.representatives, "passes": cfg.render.passes,
                           "preprocess_seconds": t_pre, "render_seconds": result.render_seconds,
-                          "seconds": result.seconds, "cut_size_mean": float(result.cut_size.mean())}, mask
+                          "seconds": result.seconds, **image_seconds(t_lights, t_trees, result),
+                          "cut_size_mean": float(result.cut_size.mean())}, mask
 
 
 def _xml_mapping(cfg) -> dict:

@@ -24,6 +24,10 @@ DEFAULT_BUILDER = "agglomerative"
 DEFAULT_METRIC = "walter2008"
 DEFAULT_EPS = 0.02
 DEFAULT_MAX_CUT = 1000
+#: The VPLs the default clamp's disc holds (render.clamp.vpls; docs/math.md, "Clamping").
+DEFAULT_CLAMP_VPLS = 400
+#: The density clamp's disc covers at most 1 / LIT_AREA_SHARES of the lit surfaces (of the VPLs).
+LIT_AREA_SHARES = 250
 DEFAULT_RAY_CASTER = "embree"
 DEFAULT_INTEGRATOR = "lightcuts"
 
@@ -203,9 +207,13 @@ class CameraConfig(Strict):
 
 
 class DirectLights(Strict):
-    """Emissive triangles sampled into ``count`` oriented lights (area-weighted, stratified)."""
+    """Direct light from the emitting triangles: ``source: samples`` places ``count`` oriented lights
+    on them (area-weighted, stratified); ``source: triangles`` makes every emitting triangle one light
+    (``count`` is then not read), which an integrator with the ``triangle_lights`` trait samples a
+    point of per shading point (lightcuts.lights.triangles)."""
 
     count: LightCount = 1024
+    source: Literal["samples", "triangles"] = "samples"
 
 
 class IndirectLights(Strict):
@@ -251,7 +259,8 @@ class Procedural(Strict):
 
 
 class Environment(Strict):
-    """An HDR lat-long environment map (EXR file, or generated) sampled into ``count`` directional lights."""
+    """An HDR lat-long environment map (EXR file, or generated; neither: the ``constant`` or ``envmap``
+    emitter of the ``scene.mitsuba`` file) sampled into ``count`` directional lights."""
 
     file: str | None = None
     procedural: Procedural | None = None
@@ -289,10 +298,33 @@ class TreeConfig(Strict):
 
 
 class Clamp(Strict):
-    """Clamping of indirect VPLs: G uses max(d, min_distance * scene diagonal)."""
+    """Clamping of indirect VPLs: G uses max(d, r) (docs/math.md, "Clamping"). ``mode: density`` (the
+    default): r = sqrt(min(vpls, N / LIT_AREA_SHARES)) * the N indirect VPLs' median spacing
+    (lightcuts.lights.spacing), the radius of a disc holding about ``vpls`` VPLs and at most
+    1 / LIT_AREA_SHARES of them; ``mode: diagonal``: r = min_distance * scene diagonal. A config that
+    sets ``min_distance`` without a mode means ``diagonal``."""
 
     enabled: bool = True
+    mode: Literal["density", "diagonal"] = "density"
+    vpls: Annotated[float, Field(ge=0, le=MAX_LIGHTS)] = DEFAULT_CLAMP_VPLS
     min_distance: Annotated[float, Field(ge=0, le=MAX_COORD)] = 0.05
+
+    @model_validator(mode="before")
+    @classmethod
+    def _mode_from_keys(cls, v):
+        if isinstance(v, dict) and "mode" not in v:
+            if "min_distance" in v and "vpls" in v:
+                raise ValueError("min_distance is mode diagonal's, vpls mode density's: set mode, or one of them")
+            if "min_distance" in v:
+                return {**v, "mode": "diagonal"}
+        return v
+
+    @model_validator(mode="after")
+    def _keys_of_mode(self):
+        other = {"density": "min_distance", "diagonal": "vpls"}[self.mode]
+        if other in self.model_fields_set:
+            raise ValueError(f"{other}: not read in mode {self.mode}")
+        return self
 
 
 class ToneMap(Strict):
@@ -524,8 +556,11 @@ def config_from_dict(data: dict, source: str = "<config>", base_dir: str | Path 
     if (sc.builtin is not None) + (sc.procedural is not None) + (sc.mitsuba is not None) > 1:
         raise LightcutsError(f"{source}: scene: give at most one of builtin, procedural or mitsuba")
     env = cfg.lights.environment
-    if env is not None and (env.file is None) == (env.procedural is None):
-        raise LightcutsError(f"{source}: lights.environment: give exactly one of file or procedural")
+    if env is not None and env.file is not None and env.procedural is not None:
+        raise LightcutsError(f"{source}: lights.environment: give one of file or procedural, not both")
+    if env is not None and env.file is None and env.procedural is None and sc.mitsuba is None:
+        raise LightcutsError(f"{source}: lights.environment: give file or procedural (neither: the environment "
+                             "of a scene.mitsuba file)")
     check_files(cfg, source)
     return cfg
 

@@ -43,7 +43,7 @@ def tile_task(token, cfg, scene, envmap, lights, trees, window, reference: bool)
         used = None if reference else trees
         if reference:
             integ = integ.reference()
-        forest = run.forest(lights, used) if run.plan.integrator.trait("forest", False) else None
+        forest = run.forest(integ, lights, used)
         return integ.render(run.scene, run.caster, lights, used, forest=forest, envmap=envmap, seed=cfg.seed,
                             crop=window)
 

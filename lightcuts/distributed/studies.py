@@ -42,23 +42,25 @@ def reference_task(token, cfg, scene, envmap, lights, pixels) -> dict:
     def body(run):
         from lightcuts.integrators.registry import make_integrator
 
-        forest = run.forest(lights, None) if run.plan.integrator.trait("forest", False) else None
-        ref = make_integrator(cfg, run.plan.integrator).reference().render(
-            run.scene, run.caster, lights, None, forest=forest, envmap=envmap, seed=cfg.seed, pixels=pixels)
+        integ = make_integrator(cfg, run.plan.integrator).reference()
+        ref = integ.render(run.scene, run.caster, lights, None, forest=run.forest(integ, lights, None), envmap=envmap,
+                           seed=cfg.seed, pixels=pixels)
         return {"image": ref.image[:, 0], "shadow_rays": int(ref.shadow_rays)}
 
     value, info = in_run(token, cfg, scene, envmap, body)
     return {**info, **value}
 
 
-def row_task(token, cfg, scene, envmap, lights, tree: tuple, label: str, shared_seconds: float) -> dict:
+def row_task(token, cfg, scene, envmap, lights, tree: tuple, label: str, shared_seconds: float,
+             lights_seconds: float) -> dict:
     """On a worker: a compare row without its error columns (:func:`lightcuts.pipeline.comparing.compute_row`)."""
     def body(run):
         from lightcuts.pipeline.comparing import compute_row
         from lightcuts.pipeline.plan import plan_run
 
         plan = plan_run(cfg, render=True, tree=_spec(tree))
-        return compute_row(cfg, plan, label, run.scene, run.caster, lights, envmap, shared_seconds, progress=False)
+        return compute_row(cfg, plan, label, run.scene, run.caster, lights, envmap, shared_seconds, lights_seconds,
+                           progress=False)
 
     value, info = in_run(token, cfg, scene, envmap, body)
     return {**info, "computed": value}
@@ -89,7 +91,7 @@ def compare_rows(runner, cfg, plans, labels, shared, store, pixels, progress: bo
         futures += [client.submit(reference_task, token, cfg, scene_f, env_f, lights_f, chunk,
                                   key=runner.key("reference", i)) for i, chunk in enumerate(chunks)]
     futures += [client.submit(row_task, token, cfg, scene_f, env_f, lights_f, _names(plans[i].tree), labels[i],
-                              s.seconds, key=runner.key("row", i)) for i in missing]
+                              s.seconds, s.lights_seconds, key=runner.key("row", i)) for i in missing]
     futures = runner.session.track(futures)
     parts, held = {}, {}
     state = {"reference": reference}

@@ -57,7 +57,8 @@ class Mosaic:
     def result(self, seconds: float):
         """The whole image's RenderResult: image, cut sizes and shadow rays as the tiles computed
         them (those of a local render); the clamped energy from the tiles' means (equal to a local
-        render's up to float rounding)."""
+        render's up to float rounding); the light sampler's record the first tile's (its build
+        seconds its worker's)."""
         from lightcuts.lights.lightset import LUMINANCE
         from lightcuts.integrators.driver import RenderResult
 
@@ -72,4 +73,6 @@ class Mosaic:
                             shadow_rays=int(self.rays.sum()), eye_rays=n * r.spp, clamped_energy=clamped,
                             clamped_fraction=clamped / total if total > 0 else 0.0, seconds=seconds, spp=r.spp,
                             eps=r.eps, max_cut=r.max_cut, reference=r.reference,
-                            crop=(self.x0, self.y0, self.x0 + w, self.y0 + h), n_lights=dict(r.n_lights))
+                            crop=(self.x0, self.y0, self.x0 + w, self.y0 + h), n_lights=dict(r.n_lights),
+                            clamp_radius=r.clamp_radius,
+                            light_sampler=dict(r.light_sampler))

@@ -38,7 +38,7 @@ _DROP: set = set()  # runs dropped while a task held the lock: dropped when it e
 class Run:
     """One run's state on this worker: the plan of its config, its scene, environment
     map and the ray caster built over the scene; ``warmed``: the builders whose kernels a task has loaded;
-    ``forests``: the light forest of the run's lights and trees (:meth:`forest`)."""
+    ``forests``: what the integrator renders from, made once (:meth:`forest`)."""
 
     plan: object
     scene: object
@@ -48,16 +48,15 @@ class Run:
     warmed: set = field(default_factory=set)
     forests: dict = field(default_factory=dict)
 
-    def forest(self, lights: dict, trees: dict | None):
-        """``build_forest(lights, trees)``, made once for all tiles of the same lights and trees (the
-        worker keeps one copy of the shipped objects, so identity tells them apart; the entry holds
-        them, so their ids cannot be reused)."""
-        from lightcuts.integrators.forest import build_forest
-
-        key = trees is None
+    def forest(self, integrator, lights: dict, trees: dict | None):
+        """The light forest ``integrator`` renders from (its ``forest(lights, trees, scene)`` hook), made
+        once for all tiles of the same lights and trees and the same kind of integrator (the worker
+        keeps one copy of the shipped objects, so identity tells them apart; the entry holds them, so
+        their ids cannot be reused)."""
+        key = (type(integrator), trees is None)
         entry = self.forests.get(key)
         if entry is None or entry[0] is not lights or entry[1] is not trees:
-            entry = self.forests[key] = (lights, trees, build_forest(lights, trees))
+            entry = self.forests[key] = (lights, trees, integrator.forest(lights, trees, self.scene))
         return entry[2]
 
 

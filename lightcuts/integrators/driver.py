@@ -61,6 +61,10 @@ class RenderResult:
     spp, eps, max_cut : the integrator's settings (max_cut: the bound of cut_size per eye ray)
     reference : whether a brute-force reference rendered it
     crop : the window rendered (None for a pixel list); n_lights : {type: count} of the forest
+    clamp_radius : the radius within which indirect VPLs were clamped, world units (0: none)
+    light_sampler : how the render drew lights (the integrator's :meth:`sampler_record
+        <lightcuts.integrators.registry.Integrator.sampler_record>`, report.json's ``light_sampler``),
+        {} for an integrator that draws none
     """
 
     image: np.ndarray
@@ -77,6 +81,8 @@ class RenderResult:
     reference: bool
     crop: tuple[int, int, int, int] | None
     n_lights: dict = field(default_factory=dict)
+    clamp_radius: float = 0.0
+    light_sampler: dict = field(default_factory=dict)
 
 
 class Frame(NamedTuple):
@@ -171,7 +177,7 @@ def render_window(integrator, scene, caster, lights: dict, trees: dict | None, *
         raise LightcutsError(f"render.ray_caster: {type(caster).__name__} cannot be called from kernels; "
                              f"use a kernel-callable caster such as 'embree'")
     if forest is None:
-        forest = integrator.forest(lights, trees)
+        forest = integrator.forest(lights, trees, scene)
     sx, sy = strata(integrator.spp)
     surfaces = tuple(kernel_array(a, np.float64) for a in (scene.face_normals, scene.albedo))
     surfaces += (scene.texture_data(),) + tuple(kernel_array(a, np.float64) for a in (
@@ -203,7 +209,9 @@ def render_window(integrator, scene, caster, lights: dict, trees: dict | None, *
         shadow_rays=int(rays.sum()), eye_rays=rows * cols * integrator.spp, clamped_energy=clamped,
         clamped_fraction=clamped / total if total > 0 else 0.0, seconds=time.perf_counter() - t_start,
         spp=integrator.spp, eps=integrator.eps, max_cut=integrator.max_cut, reference=integrator.brute_force,
-        crop=(x0, y0, x1, y1) if pixels is None else None, n_lights=forest.n_lights if forest is not None else {})
+        crop=(x0, y0, x1, y1) if pixels is None else None, n_lights=forest.n_lights if forest is not None else {},
+        clamp_radius=integrator.clamp_radius(scene, forest),
+        light_sampler=integrator.sampler_record(forest))
 
 
 def warm(integrator) -> None:

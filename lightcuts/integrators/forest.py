@@ -19,6 +19,7 @@ from numba import njit
 
 from lightcuts.errors import LightcutsError
 from lightcuts.lights.lightset import LIGHT_TYPES, LightSet
+from lightcuts.lights.spacing import indirect_spacing
 from lightcuts.parallel import on_threads
 from lightcuts.integrators.bounds import DIRECTIONAL, OMNI, ORIENTED, frame_coefficient
 from lightcuts.rounding import down32, up32
@@ -62,6 +63,8 @@ class Forest:
     n_lights : {type: count}
     node_b : (K, 16) float32, what the kernel reads of node_f and node_k (``NB_*``), one cache line
         a node; node_bi : the same memory viewed as (K, 16) int32 (:func:`pack_nodes`)
+    vpl_spacing : the indirect VPLs' median spacing, world units (lightcuts.lights.spacing; 0 without
+        two of them), which the default clamp radius is a multiple of; vpl_count : their number
     """
 
     light_f: np.ndarray
@@ -72,6 +75,8 @@ class Forest:
     n_lights: dict
     node_b: np.ndarray
     node_bi: np.ndarray
+    vpl_spacing: float = 0.0
+    vpl_count: int = 0
 
 
 def cache_aligned_zeros(shape: tuple[int, int], dtype) -> np.ndarray:
@@ -261,5 +266,6 @@ def build_forest(lights: dict, trees: dict | None) -> Forest:
         node_base += len(order)
     node_b, node_bi = pack_nodes(node_f, node_k)
     return Forest(light_f=light_f, light_i=light_i, node_f=node_f, node_k=node_k, roots=np.array(roots, np.int64),
-                  n_lights=n_lights, node_b=node_b, node_bi=node_bi)
+                  n_lights=n_lights, node_b=node_b, node_bi=node_bi,
+                  vpl_spacing=indirect_spacing(dict(sets)), vpl_count=int(sum(ls.indirect.sum() for _, ls in sets)))
 

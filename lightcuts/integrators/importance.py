@@ -6,7 +6,9 @@ The importance of a node for a shading point p with normal n (pbrt-v4's ``Compac
 Conty Estevez and Kulla 2018; docs/math.md, "Sampling light trees") is a cheap estimate of the
 node's contribution, an upper bound in its angular factors: ``phi * cos(theta') / d2 * cos(theta_i')``
 with phi the node's power (luminance of its summed intensity), d2 the squared distance from p to the
-box's centre clamped below by the squared half-diagonal, theta' the smallest angle between the
+box's centre (outside the box's bounding sphere of radius r; inside it, clamped below by (r/2)^2,
+about the mean squared distance to lights spread through the sphere, instead of r^2, which starves
+a large node that holds the lights nearest to p), theta' the smallest angle between the
 emission cone (axis, half-angle theta_o) and the direction to p once the box's subtended half-angle
 theta_b is taken off, and theta_i' the receiver's angle to the box less theta_b. A node whose
 theta' reaches 90 degrees (one-sided cosine emitters: triangles and oriented VPLs) cannot light p:
@@ -41,8 +43,8 @@ REC_LO, REC_HI, REC_COS, REC_PHI, REC_WIDTH = 0, 3, 6, 7, 8
 ONE_BELOW = 1.0 - 2.0 ** -53
 # Cosine of the emission spread of one-sided cosine emitters (triangles, oriented VPLs): 90 degrees.
 _COS_EMISSION = 0.0
-# Floor of a node's squared distance, relative to its squared distance from the origin scale (a point
-# light at the shading point would otherwise get an infinite importance).
+# Floor of a node's squared distance, world units squared (a point light at the shading point would
+# otherwise get an infinite importance).
 _D2_FLOOR = 1e-30
 
 
@@ -99,7 +101,7 @@ def importance(rec, axis, k, typ, p0, p1, p2, n0, n1, n2):
     w0, w1, w2 = p0 - c0, p1 - c1, p2 - c2
     d2 = w0 * w0 + w1 * w1 + w2 * w2
     if d2 <= r2:  # p inside the box's bounding sphere: every direction is possible
-        return phi / max(r2, _D2_FLOOR)
+        return phi / max(d2, 0.25 * r2, _D2_FLOOR)
     d = np.sqrt(d2)
     w0, w1, w2 = w0 / d, w1 / d, w2 / d
     cos_b = np.sqrt(max(0.0, 1.0 - r2 / d2))

@@ -29,6 +29,7 @@ from numba import njit
 
 from lightcuts.accel.kernel_api import new_scratch
 from lightcuts.accel.packets import new_ray_packet
+from lightcuts.config.schema import DEFAULT_CLAMP_VPLS
 from lightcuts.errors import LightcutsError
 from lightcuts.hashing import mix64
 from lightcuts.limits import MAX_CONTINUATION_RAYS
@@ -170,10 +171,11 @@ class Lightcuts(CutIntegrator):
     """
 
     def __init__(self, *, spp: int = 1, eps: float = 0.02, max_cut: int = 1000, clamp: bool = True,
-                 clamp_min_distance: float = 0.05, visibility: bool = True, compensation: bool = False,
-                 representatives: str = "fixed", continuation_rays: int = 1, all_lights: bool = False):
-        super().__init__(spp=spp, eps=eps, max_cut=max_cut, clamp=clamp, clamp_min_distance=clamp_min_distance,
-                         visibility=visibility)
+                 clamp_vpls: float = DEFAULT_CLAMP_VPLS, clamp_min_distance: float | None = None,
+                 visibility: bool = True, compensation: bool = False, representatives: str = "fixed",
+                 continuation_rays: int = 1, all_lights: bool = False):
+        super().__init__(spp=spp, eps=eps, max_cut=max_cut, clamp=clamp, clamp_vpls=clamp_vpls,
+                         clamp_min_distance=clamp_min_distance, visibility=visibility)
         self.continuation_rays = check_count(continuation_rays, "render.continuation_rays", MAX_CONTINUATION_RAYS)
         if representatives not in ("fixed", "stochastic"):
             raise LightcutsError(f"render.representatives: {representatives!r} must be 'fixed' or 'stochastic'")
@@ -190,31 +192,32 @@ class Lightcuts(CutIntegrator):
     def reference(self) -> "Lightcuts":
         """Every light at every eye ray's hit, the same eye rays and shading (no trees, eps 0, no
         compensation)."""
-        return Lightcuts(spp=self.spp, eps=0.0, max_cut=1, clamp=self.clamp,
-                         clamp_min_distance=self.clamp_min_distance, visibility=self.visibility, all_lights=True)
+        return Lightcuts(spp=self.spp, eps=0.0, max_cut=1, **self.clamp_settings(), visibility=self.visibility,
+                         all_lights=True)
 
     def band_kernel(self, f) -> Band:
         """The lightcut kernel's call for the driver's frame ``f`` (lightcuts.integrators.driver)."""
         fo, reference = f.forest, self.brute_force
         head = (*f.caster, f.cam, f.seed, self.spp, f.sx, f.sy)
         tail = (*f.surfaces, fo.node_b, fo.node_bi, fo.roots, fo.light_f, fo.light_i, *f.env, float(self.eps),
-                self.max_cut, self.clamp_d2(f.scene), f.ray_offset, self.visibility, reference,
+                self.max_cut, self.clamp_d2(f.scene, fo), f.ray_offset, self.visibility, reference,
                 self.continuation_rays if self.compensation and not reference else 0,
                 self.representatives == "stochastic" and not reference)
         return Band(_render_band, head, tail, max(1, BAND_PIXELS // f.cols), CHUNK)
 
 
 def render_image(scene, caster, lights: dict, trees: dict, camera=None, spp: int = 1, eps: float = 0.02,
-                 max_cut: int = 1000, clamp: bool = True, clamp_min_distance: float = 0.05, envmap=None,
-                 seed: int = 0, crop=None, progress: Callable[[int], object] | None = None,
+                 max_cut: int = 1000, clamp: bool = True, clamp_vpls: float = DEFAULT_CLAMP_VPLS,
+                 clamp_min_distance: float | None = None, envmap=None, seed: int = 0, crop=None,
+                 progress: Callable[[int], object] | None = None,
                  reference: bool = False, visibility: bool = True, pixels=None, compensation: bool = False,
                  representatives: str = "fixed", continuation_rays: int = 1, forest=None) -> RenderResult:
     """The :class:`Lightcuts` integrator of these settings (with ``reference=True``, its reference:
     every light at every hit) rendering in one call; arguments as the integrator's constructor and
     :meth:`~lightcuts.integrators.registry.Integrator.render`."""
-    integ = Lightcuts(spp=spp, eps=eps, max_cut=max_cut, clamp=clamp, clamp_min_distance=clamp_min_distance,
-                      visibility=visibility, compensation=compensation, representatives=representatives,
-                      continuation_rays=continuation_rays)
+    integ = Lightcuts(spp=spp, eps=eps, max_cut=max_cut, clamp=clamp, clamp_vpls=clamp_vpls,
+                      clamp_min_distance=clamp_min_distance, visibility=visibility, compensation=compensation,
+                      representatives=representatives, continuation_rays=continuation_rays)
     if reference:
         integ = integ.reference()
     return integ.render(scene, caster, lights, trees, forest=forest, camera=camera, envmap=envmap, seed=seed,
@@ -222,14 +225,14 @@ def render_image(scene, caster, lights: dict, trees: dict, camera=None, spp: int
 
 
 def render_reference(scene, caster, lights: dict, camera=None, spp: int = 1, clamp: bool = True,
-                     clamp_min_distance: float = 0.05, envmap=None, seed: int = 0, crop=None,
-                     progress: Callable[[int], object] | None = None, visibility: bool = True,
-                     pixels=None, forest=None) -> RenderResult:
+                     clamp_vpls: float = DEFAULT_CLAMP_VPLS, clamp_min_distance: float | None = None,
+                     envmap=None, seed: int = 0, crop=None, progress: Callable[[int], object] | None = None,
+                     visibility: bool = True, pixels=None, forest=None) -> RenderResult:
     """The brute-force reference of :func:`render_image`: the same eye rays and shading, every light
     at every hit with one shadow ray each (no trees)."""
-    return render_image(scene, caster, lights, None, camera, spp, clamp=clamp, clamp_min_distance=clamp_min_distance,
-                        envmap=envmap, seed=seed, crop=crop, progress=progress, reference=True,
-                        visibility=visibility, pixels=pixels, forest=forest)
+    return render_image(scene, caster, lights, None, camera, spp, clamp=clamp, clamp_vpls=clamp_vpls,
+                        clamp_min_distance=clamp_min_distance, envmap=envmap, seed=seed, crop=crop,
+                        progress=progress, reference=True, visibility=visibility, pixels=pixels, forest=forest)
 
 
 def warm_kernels() -> None:

@@ -126,12 +126,21 @@ def _renders(trait, why: str, integrator: str) -> bool:
     return why.split(".")[1] in trait("light_types", ())
 
 
+def _names_path(cfg) -> bool:
+    """Whether the config's ``render.integrator`` is the path integrator."""
+    spec = cfg.render.integrator
+    return (spec if isinstance(spec, str) else spec["type"]) == "path"
+
+
 @REFERENCES.register("lightcuts")
 @declare(exact_materials=True, light_types=("emitters",), lens=False, integrators=("path",), max_depth=False,
          sampler="stratified jittered eye rays (lightcuts.integrators.camera)")
 class PathReference(ReferenceRenderer):
     """This project's path integrator (lightcuts.integrators.path) at the reference's sample count: the
-    exact BRDF, emitting triangles only, through a pinhole, every bounce."""
+    exact BRDF, emitting triangles only, through a pinhole, every bounce. Its next-event estimation
+    draws emitters by power, or as the config's own ``render.integrator`` does when that is ``path``
+    with another ``light_sampler`` (a tree of ``tree.builder``: the reference of a scene with many
+    emitters converges faster)."""
 
     label = "lightcuts-path"
     file = "path"
@@ -143,11 +152,14 @@ class PathReference(ReferenceRenderer):
 
     def render(self, cfg, scene, envmap, spp: int, seed: int, integrator: str = "path") -> tuple[np.ndarray, float]:
         from lightcuts.accel import make_caster
-        from lightcuts.integrators.path import path_trace
+        from lightcuts.integrators.path import Path, path_trace
+        from lightcuts.integrators.registry import make_integrator
 
         if id(scene) not in self._casters:
             self._casters[id(scene)] = (scene, make_caster(scene))
-        return path_trace(scene, self._casters[id(scene)][1], spp=spp, seed=seed, crop=cfg.render.crop)
+        own = make_integrator(cfg) if _names_path(cfg) else None
+        sampler = {"light_sampler": own.light_sampler, "tree": own.tree} if isinstance(own, Path) else {}
+        return path_trace(scene, self._casters[id(scene)][1], spp=spp, seed=seed, crop=cfg.render.crop, **sampler)
 
     def warm(self, cfg, scene, envmap) -> None:
         self.render(cfg, scene, envmap, 1, 0)  # numba loads (or compiles) the kernel

@@ -4,7 +4,8 @@ An integrator is an object built once from its settings (Mitsuba's plugin shape)
 takes the config's render settings and the entry's own parameters and checks them (one-line
 LightcutsError naming the config key), and :meth:`Integrator.render` renders a window of the image
 (a crop window or a pixel list) from the scene, the ray caster, the lights and trees (or their light
-forest, made once for many windows: :meth:`Integrator.forest`) and the per-run inputs (camera,
+forest, or whatever else it makes once per render for many windows: :meth:`Integrator.forest`, which
+a cluster's worker makes once for all its tiles) and the per-run inputs (camera,
 environment map, seed, progress). :meth:`Integrator.reference` is its brute-force counterpart over
 the same samples, against which its errors are measured. Every integrator renders through the one
 image driver (lightcuts.integrators.driver), supplying its band kernel call (:meth:`Integrator.band_kernel`).
@@ -21,7 +22,9 @@ one cut serves, ``eye ray`` or ``pixel``; ``lightcuts scaling --gather`` compare
 ``reference`` (it has a brute-force reference: ``--reference`` and compare's errors), ``forest`` (it
 renders from the light forest of the lights and trees, :meth:`Integrator.forest`, which a cluster's
 worker makes once for all its tiles; compare, whose rows differ by their trees, refuses an
-integrator without it) and ``kernels``: the module whose ``_render_band`` kernel its renders use and
+integrator without it), ``triangle_lights`` (it renders the emitting triangles that
+``lights.direct.source: triangles`` makes the direct lights; the plan refuses that source otherwise)
+and ``kernels``: the module whose ``_render_band`` kernel its renders use and
 whose ``warm_kernels()`` compiles it, which the commands compile in a second process while the
 lights and trees are made (lightcuts.pipeline.warmup). Adding an integrator is a subclass of
 :class:`Integrator` registered with ``INTEGRATORS.register`` (or an entry point in group
@@ -31,20 +34,24 @@ Entries: ``lightcuts``, a lightcut per eye ray through every light tree (Walter 
 lightcuts.integrators.lightcut); ``multidimensional``, one cut per pixel through the product of a gather
 tree over the pixel's eye-ray hits and the light trees (Walter et al. 2006,
 lightcuts.integrators.multidim); ``path``, a path tracer with lightcuts' own BRDF over the scene's
-emitting triangles (lightcuts.integrators.path), which uses no lights or trees.
+emitting triangles (lightcuts.integrators.path), which uses none of the config's lights or trees
+(with ``light_sampler: tree``, a tree of its own over the emitting triangles); ``stochastic-lightcuts``,
+a cut by importance per eye ray and one light drawn below each cut node (Yuksel 2019,
+lightcuts.integrators.stochastic).
 """
 
 from __future__ import annotations
 
 import math
 
+from lightcuts.config.schema import DEFAULT_CLAMP_VPLS, LIT_AREA_SHARES
 from lightcuts.errors import LightcutsError
 from lightcuts.registry import Registry, declaration
 from lightcuts.integrators import MAX_CUT
 
 INTEGRATORS: Registry = Registry("integrator", group="lightcuts.integrators",
                                  builtins=("lightcuts.integrators.lightcut", "lightcuts.integrators.multidim.render",
-                                           "lightcuts.integrators.path"))
+                                           "lightcuts.integrators.path", "lightcuts.integrators.stochastic"))
 
 
 def check_count(value, key: str, hi: int | None = None) -> int:
@@ -67,12 +74,14 @@ class Integrator:
 
     spp : eye rays per pixel (stratified, jittered: lightcuts.integrators.camera). ``eps``, ``max_cut``
     (the bound of a pixel's cut per eye ray, in its ``cut_unit``) and ``brute_force`` (it is a
-    reference) are what its RenderResults record.
+    reference) are what its RenderResults record; ``clamp``: it clamps indirect VPLs (report.json's
+    ``clamping.enabled``).
     """
 
     eps = 0.0
     max_cut = 0
     brute_force = False
+    clamp = False
 
     def __init__(self, *, spp: int = 1):
         self.spp = check_count(spp, "render.spp")
@@ -93,12 +102,28 @@ class Integrator:
         ``render.integrator.<name>``)."""
         return declaration(type(self))["params"][name].check(value, f"render.integrator.{name}")
 
-    def forest(self, lights: dict, trees: dict | None):
-        """The light forest its renders take (lightcuts.integrators.forest.build_forest of the lights and
-        trees; a reference's of the lights alone), or None if it uses none."""
-        from lightcuts.integrators.forest import build_forest
+    def clamp_radius(self, scene, forest) -> float:
+        """The radius within which indirect VPLs are clamped, world units (0: none)."""
+        return 0.0
 
+    def forest(self, lights: dict, trees: dict | None, scene):
+        """What its renders of ``scene`` take, made once for many windows (a cluster's worker keeps it
+        for all its tiles): the light forest (lightcuts.integrators.forest.build_forest of the lights
+        and trees; a reference's of the lights alone), or the integrator's own per-run data.
+        LightcutsError for a set of triangle lights (``lights.direct.source: triangles``): the
+        forest's lights are points."""
+        from lightcuts.integrators.forest import build_forest
+        from lightcuts.lights.triangles import leading_triangles
+
+        if any(leading_triangles(ls) for ls in lights.values()):
+            raise LightcutsError(f"lights.direct.source: integrator {type(self).__name__} renders point lights "
+                                 f"only, not the emitting triangles")
         return build_forest(lights, None if self.brute_force else trees)
+
+    def sampler_record(self, forest) -> dict:
+        """How its renders from ``forest`` draw lights, for report.json's ``light_sampler`` ({}: it draws
+        none)."""
+        return {}
 
     def reference(self) -> "Integrator":
         """The brute-force integrator over the same samples (its errors are measured against it)."""
@@ -133,29 +158,55 @@ class Integrator:
 
 class CutIntegrator(Integrator):
     """An integrator that cuts light trees: eps : relative error threshold of a cut (0: refine until
-    every node is exact); max_cut : largest cut per eye ray (1 to MAX_CUT); clamp,
-    clamp_min_distance : clamping of indirect VPLs at ``clamp_min_distance * scene diagonal``;
-    visibility : False casts no shadow rays (every light visible: unshadowed images, and the cost of
-    the cut without the caster's share, benchmarks/bench_render.py)."""
+    every node is exact); max_cut : largest cut per eye ray (1 to MAX_CUT); clamp : clamping of
+    indirect VPLs at the radius :meth:`clamp_radius`, from the VPLs' density (``clamp_vpls``: the
+    VPLs its disc holds) or, with ``clamp_min_distance`` given, ``clamp_min_distance * scene
+    diagonal``; visibility : False casts no shadow rays (every light visible: unshadowed images, and
+    the cost of the cut without the caster's share, benchmarks/bench_render.py)."""
 
     def __init__(self, *, spp: int = 1, eps: float = 0.02, max_cut: int = 1000, clamp: bool = True,
-                 clamp_min_distance: float = 0.05, visibility: bool = True):
+                 clamp_vpls: float = DEFAULT_CLAMP_VPLS, clamp_min_distance: float | None = None,
+                 visibility: bool = True):
         super().__init__(spp=spp)
         self.eps = check_non_negative(eps, "render.eps")
         self.max_cut = check_count(max_cut, "render.max_cut", MAX_CUT)
         self.clamp = bool(clamp)
-        self.clamp_min_distance = check_non_negative(clamp_min_distance, "render.clamp.min_distance")
+        self.clamp_vpls = check_non_negative(clamp_vpls, "render.clamp.vpls")
+        self.clamp_min_distance = None if clamp_min_distance is None else \
+            check_non_negative(clamp_min_distance, "render.clamp.min_distance")
         self.visibility = bool(visibility)
 
     @classmethod
     def settings(cls, cfg) -> dict:
-        r = cfg.render
-        return {**super().settings(cfg), "eps": r.eps, "max_cut": r.max_cut, "clamp": r.clamp.enabled,
-                "clamp_min_distance": r.clamp.min_distance}
+        r, c = cfg.render, cfg.render.clamp
+        return {**super().settings(cfg), "eps": r.eps, "max_cut": r.max_cut, "clamp": c.enabled,
+                "clamp_vpls": c.vpls, "clamp_min_distance": c.min_distance if c.mode == "diagonal" else None}
 
-    def clamp_d2(self, scene) -> float:
-        """The squared clamping distance in the scene (0: no clamping)."""
-        return float((self.clamp_min_distance * scene.diagonal) ** 2 if self.clamp else 0.0)
+    def clamp_settings(self) -> dict:
+        """The clamp keyword arguments of the constructor, for a counterpart (e.g. :meth:`reference`)."""
+        return {"clamp": self.clamp, "clamp_vpls": self.clamp_vpls, "clamp_min_distance": self.clamp_min_distance}
+
+    def clamp_radius(self, scene, forest) -> float:
+        """The clamping radius of indirect VPLs in the scene, world units (:func:`clamp_radius`)."""
+        return clamp_radius(self.clamp, self.clamp_vpls, self.clamp_min_distance, scene, forest)
+
+    def clamp_d2(self, scene, forest) -> float:
+        """The squared clamping radius (:meth:`clamp_radius`)."""
+        return self.clamp_radius(scene, forest) ** 2
+
+
+def clamp_radius(clamp: bool, clamp_vpls: float, clamp_min_distance: float | None, scene, forest) -> float:
+    """The clamping radius of indirect VPLs in the scene, world units (0: no clamping):
+    ``sqrt(min(clamp_vpls, N / LIT_AREA_SHARES)) * forest.vpl_spacing`` for the forest's N indirect
+    VPLs (the radius of a disc holding about ``clamp_vpls`` VPLs, and at most 1 / LIT_AREA_SHARES
+    of them; docs/math.md, "Clamping"), or ``clamp_min_distance * scene.diagonal`` when that is set."""
+    if not clamp:
+        return 0.0
+    if clamp_min_distance is not None:
+        return float(clamp_min_distance * scene.diagonal)
+    if forest is None:
+        return 0.0
+    return float(math.sqrt(min(clamp_vpls, forest.vpl_count / LIT_AREA_SHARES)) * forest.vpl_spacing)
 
 
 def make_integrator(cfg, integrator=None) -> Integrator:

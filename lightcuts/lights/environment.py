@@ -13,7 +13,9 @@ Environment-map convention (Mitsuba 3's, so maps and renders compare directly):
   background the renderer shows agree exactly.
 * ``rotate`` (degrees) turns the map about +y, right-handed: a feature at map direction ``d``
   appears in the world at ``R_y(rotate) d``, with ``R_y(a) = [[cos a, 0, sin a], [0, 1, 0],
-  [-sin a, 0, cos a]]``. ``scale`` multiplies the radiance.
+  [-sin a, 0, cos a]]``. ``scale`` multiplies the radiance. A map may also have a ``frame``, any
+  rotation (an orthogonal (3, 3) matrix, Mitsuba's ``to_world`` of an ``envmap``), applied first:
+  map direction ``d`` is then at ``R_y(rotate) frame d``.
 
 Radiance is W/(m^2 sr) per RGB channel (linear). A directional light's ``position`` is the unit
 direction *towards* the light and its intensity the irradiance it gives at normal incidence, W/m^2.
@@ -31,6 +33,10 @@ from lightcuts.errors import LightcutsError
 from lightcuts.io import atomic_path
 from lightcuts.lights.direct import radical_inverse_base2
 from lightcuts.lights.lightset import LUMINANCE, LightSet
+
+
+#: Largest |frame^T frame - I| entry of an environment map's frame (float32 transforms of files included).
+FRAME_TOLERANCE = 1e-5
 
 
 def sun_light(direction, irradiance) -> LightSet:
@@ -85,14 +91,16 @@ class EnvironmentMap:
     """A lat-long HDR environment (see the module docstring for the convention).
 
     pixels : (H, W, 3) float32, C-contiguous, linear radiance W/(m^2 sr), finite and >= 0
-    rotate : rotation about +y, degrees; ``rotation`` is the (3, 3) matrix map -> world
+    rotate : rotation about +y, degrees; ``rotation`` is the (3, 3) matrix map -> world,
+        ``R_y(rotate) @ frame``
     scale : radiance multiplier
     name : where the map came from (file path or "procedural sky"), for messages and metadata
+    frame : (3, 3) orthogonal matrix map -> world applied before ``rotate`` (None: the identity)
 
     Numba kernels use ``envmap_radiance(env.pixels, env.rotation, env.scale, dx, dy, dz)``.
     """
 
-    def __init__(self, pixels, rotate: float = 0.0, scale: float = 1.0, name: str = "environment"):
+    def __init__(self, pixels, rotate: float = 0.0, scale: float = 1.0, name: str = "environment", frame=None):
         pixels = np.ascontiguousarray(pixels, np.float32)
         if pixels.ndim != 3 or pixels.shape[2] != 3 or pixels.shape[0] < 1 or pixels.shape[1] < 1:
             raise LightcutsError(f"{name}: environment map has shape {pixels.shape}, expected (H, W, 3)")
@@ -102,7 +110,11 @@ class EnvironmentMap:
             raise LightcutsError(f"{name}: environment map has negative values")
         self.pixels = pixels
         self.rotate = float(rotate)
-        self.rotation = rotation_y(self.rotate)
+        frame = np.eye(3) if frame is None else np.asarray(frame, np.float64)
+        if frame.shape != (3, 3) or not np.all(np.isfinite(frame)) or \
+                np.abs(frame.T @ frame - np.eye(3)).max() > FRAME_TOLERANCE:
+            raise LightcutsError(f"{name}: environment frame is not a rotation (an orthogonal 3x3 matrix)")
+        self.rotation = rotation_y(self.rotate) @ frame
         self.scale = float(scale)
         self.name = name
 

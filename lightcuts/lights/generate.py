@@ -13,6 +13,7 @@ from lightcuts.lights.direct import direct_lights
 from lightcuts.lights.environment import EnvironmentMap, environment_lights, procedural_sky, sun_light
 from lightcuts.lights.indirect import indirect_lights
 from lightcuts.lights.lightset import LightSet
+from lightcuts.lights.triangles import TRIANGLES_META, triangle_lights
 
 # Spawn keys of the sources' sub-seeds: never renumber (it would change every saved run's lights).
 _SOURCE_KEYS = {"direct": 1, "indirect": 2, "environment": 3}
@@ -25,12 +26,24 @@ def sub_seed(seed: int, source: str) -> int:
 
 
 def load_environment(cfg) -> EnvironmentMap | None:
-    """The config's environment map (file or procedural sky, ``rotate`` and ``scale`` applied), or None."""
+    """The config's environment map (file or procedural sky, ``rotate`` and ``scale`` applied; with
+    neither, the ``constant`` or ``envmap`` emitter of its ``scene.mitsuba`` file, held in memory as
+    lightcuts.scene.mitsuba_emitters reads it), or None."""
     env = cfg.lights.environment
     if env is None:
         return None
     if env.file is not None:
         return EnvironmentMap.load(cfg.resolve(env.file), env.rotate, env.scale)
+    if env.procedural is None:
+        xml = None
+        if cfg.scene.mitsuba is not None:
+            from lightcuts.scene.mitsuba_xml import xml_summary
+
+            xml = xml_summary(cfg.resolve(cfg.scene.mitsuba))[0].environment
+        if xml is None:
+            raise LightcutsError("lights.environment: give file or procedural (or a scene.mitsuba file with a "
+                                 "constant or envmap emitter)")
+        return EnvironmentMap(xml.pixels, env.rotate, env.scale * xml.scale, xml.name, frame=xml.frame)
     p = env.procedural
     return procedural_sky(p.sun_direction, p.resolution, p.zenith, p.horizon, p.ground,
                           sun_irradiance=p.sun_irradiance, sun_radius=p.sun_radius, rotate=env.rotate,
@@ -44,7 +57,7 @@ def point_lights(cfg) -> LightSet | None:
         return None
     from lightcuts.scene.mitsuba_xml import xml_summary
 
-    points = xml_summary(cfg.resolve(cfg.scene.mitsuba))[2]
+    points = xml_summary(cfg.resolve(cfg.scene.mitsuba))[0].points
     if not len(points):
         return None
     return LightSet(points[:, 0], np.zeros((len(points), 3)), points[:, 1], "omni")
@@ -61,7 +74,11 @@ def lights_from_config(cfg, scene, caster=None, envmap: EnvironmentMap | None = 
     indirect VPLs; ``directional`` = the sun then the environment samples. Each set's ``meta``: scene
     name, scene bbox min/max and diagonal, the run seed, and ``count_direct``, ``count_indirect``,
     ``count_sun``, ``count_environment``, ``count_point`` (0 when absent) plus
-    ``indirect_paths`` (the particle paths that normalise the VPLs).
+    ``indirect_paths`` (the particle paths that normalise the VPLs). With
+    ``lights.direct.source: triangles`` the direct lights are the scene's emitting triangles
+    (lightcuts.lights.triangles.triangle_lights, one light each, ``count_direct`` of them, first in
+    the ``oriented`` set) and every set's meta has ``direct_source: triangles``
+    (:data:`~lightcuts.lights.triangles.TRIANGLES_META`).
 
     LightcutsError: emission the scene may not have (:meth:`Scene.check_emission`), an indirect
     count > 0, or a direct count the config sets, in a scene without emitters (the default direct
@@ -71,16 +88,24 @@ def lights_from_config(cfg, scene, caster=None, envmap: EnvironmentMap | None = 
     lc = cfg.lights
     scene.check_emission(f"scene {scene.name!r}")  # NaN would count as no emission below
     have_emitters = len(scene.emitters) > 0 and float((scene.emission.max(axis=1) * scene.face_areas).max()) > 0
+    triangles = lc.direct.source == "triangles"
     n_direct = lc.direct.count
     if not have_emitters and "count" not in lc.direct.model_fields_set:
         n_direct = 0  # the default count samples the emitters there are, none here
+    if triangles and not have_emitters:
+        raise LightcutsError("lights.direct.source: triangles, but the scene has no emissive triangles "
+                             "(place area lights with scene.emitters, or use source: samples)")
     for key, n in (("direct", n_direct), ("indirect", lc.indirect.count)):
         if n > 0 and not have_emitters:
             raise LightcutsError(f"lights.{key}: the scene has no emissive triangles "
                                  f"(set lights.{key}.count: 0, or place area lights with scene.emitters)")
     oriented, directional = [], []
     counts = {"count_direct": 0, "count_indirect": 0, "count_sun": 0, "count_environment": 0, "indirect_paths": 0}
-    if n_direct > 0:
+    if triangles:
+        d = triangle_lights(scene).lights
+        oriented.append(d)
+        counts["count_direct"] = len(d)
+    elif n_direct > 0:
         d = direct_lights(scene, n_direct, sub_seed(cfg.seed, "direct"))
         oriented.append(d)
         counts["count_direct"] = len(d)
@@ -106,6 +131,8 @@ def lights_from_config(cfg, scene, caster=None, envmap: EnvironmentMap | None = 
     lo, hi = scene.bounds
     meta = {"scene": scene.name, "bbox_min": lo, "bbox_max": hi, "diagonal": scene.diagonal, "seed": cfg.seed,
             **counts}
+    if triangles:
+        meta[TRIANGLES_META] = "triangles"
     out = {}
     for typ, sets in (("omni", omni), ("oriented", oriented), ("directional", directional)):
         sets = [s for s in sets if len(s)]

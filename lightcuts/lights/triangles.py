@@ -20,6 +20,19 @@ import numpy as np
 from lightcuts.lights.lightset import LUMINANCE, LightSet
 
 
+#: The light-set meta key whose value ``triangles`` says that the first ``count_direct`` lights of
+#: the ``oriented`` set are :func:`triangle_lights` of the scene (lightcuts.lights.generate).
+TRIANGLES_META = "direct_source"
+
+
+def leading_triangles(lights: LightSet) -> int:
+    """How many of the set's first lights are the scene's emitting triangles (0 unless its meta says
+    so, as the lights stage writes it for ``lights.direct.source: triangles``)."""
+    if lights.type != "oriented" or lights.meta.get(TRIANGLES_META) != "triangles":
+        return 0
+    return int(lights.meta.get("count_direct", 0))
+
+
 class TriangleLights(NamedTuple):
     """lights : LightSet (``oriented``), one light per emitting triangle of non-zero power;
     tri : (N,) int64 the scene's triangle id of light i; lo, hi : (N, 3) float64 the triangle's box."""

@@ -222,16 +222,26 @@ def scene_dict(scene, envmap=None, sun=None, *, spp: int = 16, integrator: str =
         out[f"mesh_{g:04d}"] = _mesh(mi, f"mesh_{g:04d}", scene.vertices, scene.faces[ids], bsdf,
                                      emission if emissive else None, scene.uv[ids] if k >= 0 else None)
     if sun is not None:
-        d = np.asarray(sun.direction, np.float64)
-        d = d / np.linalg.norm(d)
-        out["sun"] = {"type": "directional", "direction": [float(-x) for x in d],
-                      "irradiance": _rgb(sun.irradiance)}
+        out["sun"] = sun_dict(sun)
     if envmap is not None:
-        m = np.eye(4)
-        m[:3, :3] = envmap.rotation
-        out["environment"] = {"type": "envmap", "bitmap": mi.Bitmap(envmap_for_mitsuba(envmap.pixels)),
-                              "scale": float(envmap.scale), "to_world": mi.ScalarTransform4f(m)}
+        out["environment"] = envmap_dict(mi, envmap)
     return out
+
+
+def sun_dict(sun) -> dict:
+    """Mitsuba's ``directional`` emitter of a sun (``direction`` towards it, ``irradiance``)."""
+    d = np.asarray(sun.direction, np.float64)
+    d = d / np.linalg.norm(d)
+    return {"type": "directional", "direction": [float(-x) for x in d], "irradiance": _rgb(sun.irradiance)}
+
+
+def envmap_dict(mi, envmap) -> dict:
+    """Mitsuba's ``envmap`` emitter of an EnvironmentMap: its pixels on Mitsuba's grid
+    (:func:`envmap_for_mitsuba`), its scale, its rotation as ``to_world``."""
+    m = np.eye(4)
+    m[:3, :3] = envmap.rotation
+    return {"type": "envmap", "bitmap": mi.Bitmap(envmap_for_mitsuba(envmap.pixels)),
+            "scale": float(envmap.scale), "to_world": mi.ScalarTransform4f(m)}
 
 
 def emitted_power(scene) -> np.ndarray:

@@ -31,7 +31,7 @@ import numpy as np
 
 from lightcuts.errors import LightcutsError
 from lightcuts.mitsuba import VARIANT, load_mitsuba
-from lightcuts.mitsuba.export import INTEGRATORS, camera_dict, integrator_dict, scene_dict
+from lightcuts.mitsuba.export import INTEGRATORS, camera_dict, envmap_dict, integrator_dict, scene_dict, sun_dict
 
 #: Samples per pixel of the timing run of :func:`spp_for_seconds`.
 PROBE_SPP = 4
@@ -47,9 +47,15 @@ def load_scene(cfg, scene, envmap, *, spp: int, integrator: str = "path", max_de
     if int(max_depth) != max_depth or not (max_depth == -1 or max_depth >= 1):
         raise LightcutsError(f"--max-depth: {max_depth} must be -1 (unbounded) or >= 1")
     mi = load_mitsuba()
-    if cfg.scene.mitsuba is not None and not (cfg.scene.meshes or cfg.scene.emitters or cfg.lights.environment):
-        return _load_xml_scene(mi, cfg, scene, spp=int(spp), integrator=integrator, max_depth=int(max_depth))
-    d = scene_dict(scene, envmap, cfg.lights.sun, spp=int(spp), integrator=integrator, max_depth=int(max_depth),
+    sun = cfg.lights.sun
+    if cfg.scene.mitsuba is not None:
+        if not (cfg.scene.meshes or cfg.scene.emitters):
+            return _load_xml_scene(mi, cfg, scene, envmap, spp=int(spp), integrator=integrator,
+                                   max_depth=int(max_depth))
+        from lightcuts.scene.mitsuba_xml import xml_settings
+
+        sun = xml_settings(cfg).lights.sun  # the file's directional emitter, if it has one
+    d = scene_dict(scene, envmap, sun, spp=int(spp), integrator=integrator, max_depth=int(max_depth),
                    crop=cfg.render.crop, aperture=cfg.camera.aperture, focus_distance=cfg.camera.focus_distance)
     try:
         return mi.load_dict(d)
@@ -58,11 +64,18 @@ def load_scene(cfg, scene, envmap, *, spp: int, integrator: str = "path", max_de
         raise LightcutsError(f"mitsuba: cannot load the exported scene ({why[:300]})") from None
 
 
-def _load_xml_scene(mi, cfg, scene, *, spp: int, integrator: str, max_depth: int):
+def _load_xml_scene(mi, cfg, scene, envmap, *, spp: int, integrator: str, max_depth: int):
     """The config's ``scene.mitsuba`` file as Mitsuba loads it (its shapes, BSDFs and emitters, the
-    directional one included), with lightcuts' camera (the file's sensor with the config's camera
-    fields applied, box filter, multi-jittered sampler, ``render.crop``) and the integrator asked
-    for; so the only difference from lightcuts' image is the BSDF mapping (lightcuts.scene.mitsuba_xml)."""
+    directional, constant and envmap ones included), with lightcuts' camera (the file's sensor with
+    the config's camera fields applied, box filter, multi-jittered sampler, ``render.crop``), the
+    config's own ``lights.sun`` and ``lights.environment`` file or sky if it gives them (exported as
+    lightcuts.mitsuba.export does), and the integrator asked for; so the only difference from
+    lightcuts' image is the file's mapping (lightcuts.scene.mitsuba_xml).
+
+    Each mesh's bounding box is computed again: Mitsuba (3.9.1) merges meshes that share a BSDF into
+    one whose box is left empty, so the scene's bounding sphere collapses to a point, and the shadow
+    rays of its infinite emitters (constant, envmap, directional), which end at twice that sphere's
+    radius or the point's distance from its centre, miss what lies further away."""
     from lightcuts.scene.mitsuba_xml import load_xml
 
     _, xml = load_xml(cfg.resolve(cfg.scene.mitsuba))
@@ -70,9 +83,16 @@ def _load_xml_scene(mi, cfg, scene, *, spp: int, integrator: str, max_depth: int
          "sensor": camera_dict(mi, scene.camera, spp, cfg.render.crop, scene.bounds, cfg.camera.aperture,
                                cfg.camera.focus_distance)}
     for i, shape in enumerate(xml.shapes()):
+        if hasattr(shape, "recompute_bbox"):
+            shape.recompute_bbox()  # see the docstring
         d[f"shape_{i:05d}"] = shape
     for i, emitter in enumerate(e for e in xml.emitters() if e.class_name() != "AreaLight"):
         d[f"emitter_{i:03d}"] = emitter
+    env = cfg.lights.environment
+    if cfg.lights.sun is not None and not any(e.class_name() == "DirectionalEmitter" for e in xml.emitters()):
+        d["sun"] = sun_dict(cfg.lights.sun)  # the config's own (a plan's cfg holds the file's)
+    if env is not None and (env.file is not None or env.procedural is not None):
+        d["environment"] = envmap_dict(mi, envmap)
     try:
         return mi.load_dict(d)
     except Exception as exc:

@@ -68,8 +68,9 @@ def resolve_rows(cfg, builders=None, metrics=None, keys=("--builders", "--metric
     integrator = INTEGRATORS.resolve(cfg.render.integrator, "render.integrator")
     if not integrator.trait("forest", False):
         users = [e.name for e in INTEGRATORS.entries() if e.trait("forest", False)]
-        raise LightcutsError(f"render.integrator: integrator {integrator.name!r} uses no light trees, which a "
-                             f"compare's rows differ by; use render.integrator: {' or '.join(users)}")
+        raise LightcutsError(f"render.integrator: integrator {integrator.name!r} does not render the config's lights "
+                             f"through their trees, which a compare's rows differ by; use render.integrator: "
+                             f"{' or '.join(users)}")
     bkey, mkey = keys
     builders = names(builders, bkey) if builders is not None else default_builders()
     given = metrics is not None
@@ -184,7 +185,7 @@ class _Shared:
 
     def get(self):
         if not self.ready:
-            from lightcuts.pipeline.warmup import start_render_warmup
+            from lightcuts.pipeline.warmup import compile_seconds, start_render_warmup
 
             t0 = time.perf_counter()
             self.scene = self.plan.scene()
@@ -192,8 +193,10 @@ class _Shared:
                 self.warmup = start_render_warmup(self.plan.integrator.trait("kernels"))
             self.caster = self.plan.make_caster(self.scene)
             self.envmap = self.plan.environment()
+            t1, c1 = time.perf_counter(), compile_seconds()
             self.lights = self.plan.lights(self.scene, self.caster, self.envmap)
             self.seconds = time.perf_counter() - t0
+            self.lights_seconds = time.perf_counter() - t1 - (compile_seconds() - c1)
             self.ready = True
         return self
 
@@ -328,12 +331,14 @@ def stored_row(store, plan, label, key: str) -> dict | None:
             "cut": cached["cut"], "image": cached["image"]}
 
 
-def compute_row(cfg, plan, label, scene, caster, lights, envmap, shared_seconds: float, progress: bool,
-                before_render=None) -> dict:
+def compute_row(cfg, plan, label, scene, caster, lights, envmap, shared_seconds: float, lights_seconds: float,
+                progress: bool, before_render=None) -> dict:
     """A row's trees and image: {"row", "cut", "image"} without the error columns (:func:`finish_row`).
     The builder's kernels are loaded on a few lights first (untimed), then the trees are built (timed)
     and the image rendered after a one-pixel load (:func:`~lightcuts.pipeline.timing.render_timed`);
-    ``shared_seconds``: the scene's and lights' time; ``before_render()`` once before the image."""
+    ``shared_seconds``: the scene's and lights' time; ``lights_seconds``: the lights' alone, compiling
+    left out (the row's ``image_seconds`` is it, the trees' and the image's: report.json's
+    ``image_seconds`` of a render); ``before_render()`` once before the image."""
     from lightcuts.pipeline.timing import render_timed
     from lightcuts.pipeline.plan import tree_meta
     from lightcuts.lights.lightset import LightSet
@@ -356,7 +361,7 @@ def compute_row(cfg, plan, label, scene, caster, lights, envmap, shared_seconds:
     row = {"label": label, "builder": used["builder"], "metric": used["metric"], "c": used["c"],
            "lights": {typ: len(ls) for typ, ls in lights.items()},
            "build_s": t_build, "preprocess_s": shared_seconds + t_build, "image_s": t_image,
-           "summed_s": shared_seconds + t_build + t_image,
+           "summed_s": shared_seconds + t_build + t_image, "image_seconds": lights_seconds + t_build + t_image,
            "cut_mean": float(result.cut_size.mean()), "cut_max": float(result.cut_size.max()),
            "cut_unit": plan.integrator.trait("cut_unit"),
            "shadow_rays_per_pixel": float(result.shadow_rays) / n_pixels,
@@ -395,7 +400,8 @@ def _row(cfg, plan, label, shared, store, pixels, reference, progress: bool) -> 
         finish_warmup(s.warmup)
         s.warmup = None
 
-    computed = compute_row(cfg, plan, label, s.scene, s.caster, s.lights, s.envmap, s.seconds, progress, finish)
+    computed = compute_row(cfg, plan, label, s.scene, s.caster, s.lights, s.envmap, s.seconds, s.lights_seconds,
+                           progress, finish)
     return finish_row(cfg, computed, pixels, reference, store, label, key)
 
 

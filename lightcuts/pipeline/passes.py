@@ -33,7 +33,8 @@ class Passes:
     shadow_rays, eye_rays : totals over the passes; clamped_fraction : the passes' mean
     load_seconds : loading (or compiling) the render kernel before pass 0, untimed elsewhere
     records : per pass ``{"pass", "seed", "lights_seconds", "build_seconds", "render_seconds",
-        "seconds", "change"}``; change = mean |running mean after the pass - before| / mean of the
+        "seconds", "change", "clamp_radius"}``; clamp_radius : the radius its indirect VPLs were clamped
+        within (world units, 0: none); change = mean |running mean after the pass - before| / mean of the
         running mean, in luminance (None for pass 0): how much the estimate still moves
     lights, trees : pass 0's light sets and trees (the run's own, for the report)
     """
@@ -77,7 +78,7 @@ class PassMean:
 
     def add(self, p: int, seed: int, result, t_lights: float, t_build: float, t_render: float) -> None:
         """Pass ``p`` (the next one): its RenderResult (image, cut_size, shadow_rays, eye_rays,
-        clamped_fraction) and the seconds of its lights, trees and image."""
+        clamped_fraction, clamp_radius) and the seconds of its lights, trees and image."""
         from lightcuts.lights.lightset import LUMINANCE
 
         assert p == len(self.records), f"pass {p} added after {len(self.records)} passes"
@@ -99,7 +100,8 @@ class PassMean:
         seconds = t_lights + t_build + t_render
         self.elapsed += seconds
         self.records.append({"pass": p, "seed": seed, "lights_seconds": t_lights, "build_seconds": t_build,
-                             "render_seconds": t_render, "seconds": seconds, "change": change})
+                             "render_seconds": t_render, "seconds": seconds, "change": change,
+                             "clamp_radius": float(result.clamp_radius)})
         if self.on_pass is not None:
             self.on_pass(p, mean, self.elapsed)
 

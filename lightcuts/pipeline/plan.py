@@ -93,7 +93,8 @@ def plan_run(cfg: RunConfig, *, render: bool = False, tree: TreeSpec | None = No
         tree = tree_spec(*config_tree(cfg.tree))
     lc = cfg.lights
     # The sizes the config asks for (the particle tracer lands within a few percent of its count).
-    for n in (lc.direct.count + lc.indirect.count,
+    n_direct = lc.direct.count if lc.direct.source == "samples" else 0  # the scene's emitting triangles: unknown yet
+    for n in (n_direct + lc.indirect.count,
               (lc.sun is not None) + (lc.environment.count if lc.environment is not None else 0)):
         tree.check_size(n)
     caster = RAY_CASTERS.resolve(cfg.render.ray_caster, "render.ray_caster")
@@ -108,6 +109,10 @@ def plan_run(cfg: RunConfig, *, render: bool = False, tree: TreeSpec | None = No
         lens = [e.name for e in INTEGRATORS.entries() if e.trait("lens", False)]
         raise LightcutsError(f"camera.aperture: integrator {integrator.name!r} renders a pinhole camera only; "
                              f"use render.integrator: {' or '.join(lens)} for depth of field")
+    if lc.direct.source == "triangles" and not integrator.trait("triangle_lights", False):
+        users = [e.name for e in INTEGRATORS.entries() if e.trait("triangle_lights", False)]
+        raise LightcutsError(f"lights.direct.source: integrator {integrator.name!r} renders point lights only; "
+                             f"use render.integrator: {' or '.join(users)} for triangle lights")
     r = cfg.render
     if r.continuation_rays > 1 and not r.compensation:
         raise LightcutsError(f"render.continuation_rays: {r.continuation_rays} continuations per eye ray need "

@@ -92,13 +92,26 @@ class Render:
         return f"<Render {self.summary()}>"
 
 
+def check_reference_lights(cfg, key: str, instead: str = "") -> None:
+    """LightcutsError naming ``key`` (the option that asks for the all-lights reference) when the
+    config's lights are not points it can sum: the emitting triangles of ``lights.direct.source:
+    triangles`` are integrated by sampling alone. ``instead``: what else the caller can do."""
+    from lightcuts.errors import LightcutsError
+
+    if cfg.lights.direct.source == "triangles":
+        raise LightcutsError(f"{key}: the all-lights reference sums point lights, not the emitting triangles of "
+                             f"lights.direct.source: triangles; {instead}compare against a path tracer "
+                             "(lightcuts reference CONFIG)")
+
+
 def check_reference(cfg, integrator) -> None:
     """LightcutsError unless the brute-force reference measures this run: the plan's ``integrator``
     must have one (its ``reference`` trait), and it is the image of one VPL set without the
     compensation, so passes > 1 and compensation have none (their reference is a path tracer's:
-    ``lightcuts reference``)."""
+    ``lightcuts reference``), nor triangle lights (:func:`check_reference_lights`)."""
     from lightcuts.errors import LightcutsError
 
+    check_reference_lights(cfg, "--reference")
     if not integrator.trait("reference", False):
         raise LightcutsError(f"--reference: integrator {integrator.name!r} has no brute-force reference; "
                              f"compare it with another run or a path tracer (lightcuts reference CONFIG)")
@@ -153,9 +166,11 @@ def _run(cfg, plan, source, reference: bool, progress: bool, warmup: list, runne
     caster = plan.make_caster(scene)
     envmap = plan.environment()
     phase("lights")
+    t1, c1 = time.perf_counter(), compile_seconds()
     light_sets = plan.lights(scene, caster, envmap)
     c_pre = compile_seconds() - c0
     t_pre = time.perf_counter() - t0 - c_pre
+    t_lights = time.perf_counter() - t1 - (compile_seconds() - c1)
 
     t0, c0 = time.perf_counter(), compile_seconds()
     phase("trees")
@@ -200,8 +215,7 @@ def _run(cfg, plan, source, reference: bool, progress: bool, warmup: list, runne
         "resolution": [int(result.image.shape[1]), int(result.image.shape[0])],
         "crop": cfg.render.crop,
         "spp": cfg.render.spp,
-        "clamping": {"enabled": cfg.render.clamp.enabled, "min_distance": cfg.render.clamp.min_distance,
-                     "clamped_energy_fraction": float(passes.clamped_fraction)},
+        "clamping": clamping_record(cfg.render.clamp, passes, make_integrator(cfg, plan.integrator).clamp),
         "compensation": cfg.render.compensation,
         "continuation_rays": cfg.render.continuation_rays,
         "representatives": cfg.render.representatives,
@@ -211,6 +225,7 @@ def _run(cfg, plan, source, reference: bool, progress: bool, warmup: list, runne
         "compile_seconds": {"preprocess": c_pre, "build": c_build, "render": t_jit},
         "build_seconds": t_build,
         "render_seconds": t_render,
+        **image_seconds(t_lights, t_build, passes),
         "cut_size_unit": plan.integrator.trait("cut_unit"),
         "cut_size_mean": float(passes.cut_size.mean()),
         "cut_size_max": float(passes.cut_size.max()),
@@ -221,6 +236,8 @@ def _run(cfg, plan, source, reference: bool, progress: bool, warmup: list, runne
         "threads": _threads(),
         "machine": platform.machine(),
     }
+    if result.light_sampler:
+        report["light_sampler"] = result.light_sampler
     ref_image = None
     if reference and runner is not None:
         t0 = time.perf_counter()
@@ -241,6 +258,26 @@ def _run(cfg, plan, source, reference: bool, progress: bool, warmup: list, runne
     if runner is not None:
         report["cluster"] = runner.record()
     return Render(cfg, passes.image, passes.cut_size, report, ref_image)
+
+
+def clamping_record(clamp, passes, enabled: bool) -> dict:
+    """report.json's ``clamping``: whether the integrator clamps (``enabled``: the config's setting,
+    or the integrator's default when the config gives none), the settings of ``render.clamp`` that its mode reads, the radius
+    pass 0 clamped within (world units, 0 when off; each pass's is in its ``passes`` record) and
+    the fraction of the reflected light clamping removed (the passes' mean)."""
+    setting = {"density": "vpls", "diagonal": "min_distance"}[clamp.mode]
+    return {"enabled": bool(enabled), "mode": clamp.mode, setting: getattr(clamp, setting),
+            "radius": float(passes.records[0]["clamp_radius"]),
+            "clamped_energy_fraction": float(passes.clamped_fraction)}
+
+
+def image_seconds(t_lights: float, t_trees: float, passes) -> dict:
+    """report.json's ``image_seconds`` and its parts: from the loaded scene (and its ray caster, which
+    any renderer of it needs) to the finished image, pass 0's lights and trees (``t_lights``,
+    ``t_trees``) and every pass after them (their lights, trees and image), compiling and loading
+    kernels left out: the time an efficiency divides by."""
+    parts = {"lights": float(t_lights), "trees": float(t_trees), "passes": passes.seconds}
+    return {"image_seconds": parts["lights"] + parts["trees"] + parts["passes"], "image_seconds_parts": parts}
 
 
 def _threads() -> int:

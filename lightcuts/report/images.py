@@ -96,7 +96,8 @@ def relative_error(image: np.ndarray, reference: np.ndarray, floor: float | None
     and not in ``mask`` (bool, the images' shape without the channel axis; True: left out).
 
     floor defaults to 1% of the reference's mean luminance over the pixels not masked (dark pixels make
-    relative error meaningless). Returns mean, median, p99, max and the number of pixels compared.
+    relative error meaningless). Returns mean, median, p99, max, rms (the root of the mean square)
+    and the number of pixels compared.
     """
     from lightcuts.lights.lightset import LUMINANCE
 
@@ -107,10 +108,11 @@ def relative_error(image: np.ndarray, reference: np.ndarray, floor: float | None
         floor = 0.01 * float(ref[keep].mean()) if keep.any() else 0.0
     keep = keep & (ref > floor)
     if not keep.any():
-        return {"pixels": 0, "floor": floor, "mean": 0.0, "median": 0.0, "p99": 0.0, "max": 0.0}
+        return {"pixels": 0, "floor": floor, "mean": 0.0, "median": 0.0, "p99": 0.0, "max": 0.0, "rms": 0.0}
     rel = np.abs(lum[keep] - ref[keep]) / ref[keep]
     return {"pixels": int(keep.sum()), "floor": float(floor), "mean": float(rel.mean()),
-            "median": float(np.median(rel)), "p99": float(np.percentile(rel, 99)), "max": float(rel.max())}
+            "median": float(np.median(rel)), "p99": float(np.percentile(rel, 99)), "max": float(rel.max()),
+            "rms": float(np.sqrt(np.mean(rel * rel)))}
 
 
 def block_means(image: np.ndarray, block: int = 8) -> np.ndarray:

@@ -10,6 +10,8 @@ the command writes anyway: its images, rows, plots, config and report.json.
 * ``reference``: lightcuts' and the path tracer's images, the mask of pixels that see an emitter;
   the figures beside the path tracer's own noise; with ``--curve`` the curve's rows and plot, with
   ``--split`` its rows.
+* ``study``: the reference and each row's last image, the mask; the rows, their error against time
+  (plot) and the ladders' points.
 * ``accel`` and ``scaling``: their tables and plots (no images).
 """
 
@@ -39,12 +41,13 @@ def render(r) -> Page:
     layers.append(Layer("cut size", r.cut_size, "cut"))
     row = {"resolution": f"{rep['resolution'][0]}x{rep['resolution'][1]}", "lights": sum(rep["lights"].values()),
            **{k: rep[k] for k in ("builder", "cut_size_mean", "cut_size_max", "shadow_rays_per_pixel",
-                                  "preprocess_seconds", "build_seconds", "render_seconds")}}
+                                  "preprocess_seconds", "build_seconds", "render_seconds", "image_seconds")}}
     cols = [("resolution", "Resolution", None), ("lights", "Lights", "{:,}"), ("builder", "Builder", None),
             ("cut_size_mean", "Avg cut", "{:.1f}"), ("cut_size_max", "Max cut", "{:.0f}"),
             ("shadow_rays_per_pixel", "Shadow rays / pixel", "{:.1f}"), ("preprocess_seconds", "Preprocess (s)",
                                                                           "{:.2f}"),
-            ("build_seconds", "Build (s)", "{:.2f}"), ("render_seconds", "Render (s)", "{:.2f}")]
+            ("build_seconds", "Build (s)", "{:.2f}"), ("render_seconds", "Render (s)", "{:.2f}"),
+            ("image_seconds", "Image time (s)", "{:.2f}")]
     if "reference" in rep:
         e = rep["reference"]["relative_error"]
         row.update(err_median=e["median"], err_p99=e["p99"], speedup=rep["reference"]["speedup"])
@@ -137,6 +140,24 @@ def reference(cfg, report: dict, images: dict, mask=None, reference_name: str | 
     return Page(f"{cfg.name}: reference", f"against {tracer} path tracing", layers=layers,
                 reference=names.index(reference_name) if reference_name else None,
                 mask=mask, tables=list(tables), plots=list(plots), **_common(cfg, report))
+
+
+def study(s, plot) -> Page:
+    """The page of ``lightcuts study`` (a :class:`lightcuts.pipeline.study.Study`): the reference and
+    each row's last image (the error view against the reference, emitter pixels grey), the table, the
+    plot of error against time (``plot``: its PNG) and the ladder's points."""
+    from lightcuts.report.study import POINT_FIELDS, columns, notes, title
+
+    rep = s.report
+    layers = [Layer(f"reference ({rep['reference']['renderer']}, {rep['reference']['spp']} spp)", s.reference)]
+    layers += [Layer(f"{label} ({r['samples']} {r['ladder']})", s.images[label])
+               for label, r in zip(s.images, rep["rows"])]
+    formats = {"seconds": "{:.3f}", "samples": "{}"}
+    points = Table("Points of the ladders", [(k, k, formats.get(k, None if k in ("label", "ladder") else "{:.4g}"))
+                                              for k in POINT_FIELDS], rep["points"])
+    return Page(f"{s.config.name}: study", title(rep), notes=notes(rep), layers=layers, reference=0, mask=s.mask,
+                tables=[Table("Rows", columns(rep["times"]), rep["rows"]), points],
+                plots=[("error against time", plot)], **_common(s.config, rep))
 
 
 def accel(cfg, report: dict, plots=()) -> Page:

@@ -1,5 +1,6 @@
 """Scenes: triangle meshes with per-triangle materials and a pinhole camera; the built-in Cornell
-box (``cornell``) and the procedural kitchen, building of rooms and gallery (``procedural``)."""
+box (``cornell``) and the procedural kitchen, building of rooms, gallery, city and office
+(``procedural``)."""
 
 from lightcuts.scene.scene import Camera, Scene
 

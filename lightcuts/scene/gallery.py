@@ -13,11 +13,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from lightcuts.config.schema import Material
 from lightcuts.scene.loaders import concatenate_scenes
 from lightcuts.scene.registry import SCENES
 from lightcuts.scene.scene import Camera, Scene
-from lightcuts.scene.shapes import PartList
+from lightcuts.scene.shapes import PartList, material as _m
 
 GW, GH, GD, T = 10.0, 3.6, 7.0, 0.1
 PER_ROW = 5
@@ -25,10 +24,6 @@ SPACING = 1.5  # m between plinth centres in a row
 ROW_Z = (2.2, 4.2)
 WASHER_SEGMENTS = 24
 RESOLUTION = (512, 384)
-
-
-def _m(albedo, specular=(0, 0, 0), exponent=0.0, emission=(0, 0, 0)) -> Material:
-    return Material(albedo=list(albedo), specular=list(specular), exponent=exponent, emission=list(emission))
 
 
 PALETTE = {

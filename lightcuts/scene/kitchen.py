@@ -21,11 +21,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from lightcuts.config.schema import Material
 from lightcuts.errors import LightcutsError
 from lightcuts.scene.registry import SCENES, SEED, triangles as triangles_param
 from lightcuts.scene.scene import Camera, Scene
-from lightcuts.scene.shapes import K_RANGE, Curved, PartList, faces_of, pose
+from lightcuts.scene.shapes import K_RANGE, Curved, PartList, faces_of, pose, material as _m
 
 W, D, H, T = 5.0, 4.0, 2.7, 0.1
 DOOR_W, DOOR_H = 0.9, 2.1
@@ -36,10 +35,6 @@ PANEL_TILES = 3  # per side of a ceiling panel
 RESOLUTION = (512, 384)
 MIN_TRIANGLES = 10_000
 TRIANGLES_PER_CLUSTER = 3000
-
-
-def _m(albedo, specular=(0, 0, 0), exponent=0.0, emission=(0, 0, 0)) -> Material:
-    return Material(albedo=list(albedo), specular=list(specular), exponent=exponent, emission=list(emission))
 
 
 #: Surface name -> material (``scene.materials`` overrides any field by name).

@@ -21,9 +21,11 @@ takes from it (docs/math.md's Lambert + Phong material; ``MAPPED_BSDFS`` lists t
   bitmap (a documented stand-in: lightcuts' emitters have one radiance per triangle).
 * The sensor (``perspective``): position, look-at and up from its ``to_world``, the vertical fov from
   Mitsuba's horizontal ``x_fov`` (whatever ``fov_axis`` the file gave) and the film's size.
-* Other emitters: ``directional`` -> ``lights.sun`` (:func:`xml_settings`); ``point`` -> an ``omni``
-  light of its ``intensity`` (``lightcuts.lights.generate.point_lights``; direct light only); spot,
-  constant and envmap emitters are an error naming the emitter (not read).
+* Other emitters (lightcuts.scene.mitsuba_emitters): ``directional`` -> ``lights.sun``
+  (:func:`xml_settings`); ``point`` -> an ``omni`` light of its ``intensity``
+  (``lightcuts.lights.generate.point_lights``; direct light only); ``constant`` and ``envmap`` ->
+  ``lights.environment`` (:func:`xml_settings`, ``lightcuts.lights.generate.load_environment``);
+  ``spot`` is an error naming the emitter and what to use instead.
 
 Mitsuba is imported here itself (:func:`mitsuba_module`), not through ``lightcuts.mitsuba``, a later
 layer.
@@ -40,6 +42,7 @@ import numpy as np
 from lightcuts.errors import LightcutsError
 from lightcuts.scene.files import regular_file
 from lightcuts.scene.materials import MAX_PBR_EXPONENT
+from lightcuts.scene.mitsuba_emitters import XmlEmitters, param, param_rgb, read_emitters
 from lightcuts.scene.scene import Camera, Scene
 from lightcuts.scene.textures import TexelBudget, TextureSet, srgb_to_linear
 
@@ -75,18 +78,6 @@ def load_xml(path, where: str = "scene.mitsuba"):
         why = " ".join(str(exc).split())
         why = why.split("Error while loading")[-1] if len(why) > 300 else why
         raise LightcutsError(f"{where}: {path}: Mitsuba cannot load it ({why[:300]})") from None
-
-
-def _value(params, key: str, default=None) -> np.ndarray | None:
-    """A traversed parameter as a float64 array (an RGB value, a float), or ``default``."""
-    if key in params:
-        return np.array(params[key], np.float64).reshape(-1)
-    return None if default is None else np.asarray(default, np.float64).reshape(-1)
-
-
-def _rgb(params, key: str, default) -> np.ndarray:
-    v = _value(params, key, default)
-    return np.broadcast_to(v, (3,)).astype(np.float64) if v.size in (1, 3) else np.full(3, float(v.mean()))
 
 
 def _phong_exponent(alpha: float) -> float:
@@ -125,12 +116,12 @@ def _map(mi, cls: str, p: dict, raw: bool, where: str):
     if name == "diffuse":
         if "reflectance.data" in p:
             return np.ones(3), zero, 0.0, _texture(p, "reflectance", raw), name
-        return np.clip(_rgb(p, "reflectance.value", 0.5), 0, 1), zero, 0.0, None, name
-    alpha = float(_value(p, "alpha.value", _value(p, "alpha", 0.0))[0]) if cls.startswith("Rough") else 0.0
+        return np.clip(param_rgb(p, "reflectance.value", 0.5), 0, 1), zero, 0.0, None, name
+    alpha = float(param(p, "alpha.value", param(p, "alpha", 0.0))[0]) if cls.startswith("Rough") else 0.0
     n = _phong_exponent(alpha)
-    rho_s_scale = _rgb(p, "specular_reflectance.value", 1.0)
+    rho_s_scale = param_rgb(p, "specular_reflectance.value", 1.0)
     if name in ("plastic", "roughplastic"):
-        eta = float(_value(p, "eta", 1.49)[0])
+        eta = float(param(p, "eta", 1.49)[0])
         f0 = _dielectric_f0(eta)
         fdr_int = float(mi.fresnel_diffuse_reflectance(1.0 / eta))
         scale = (1.0 - f0) ** 2 / (eta ** 2 * (1.0 - fdr_int))
@@ -138,12 +129,12 @@ def _map(mi, cls: str, p: dict, raw: bool, where: str):
         if "diffuse_reflectance.data" in p:
             texture, rho_d = _texture(p, "diffuse_reflectance", raw), np.full(3, scale)
         else:
-            rho_d = _rgb(p, "diffuse_reflectance.value", 0.5) * scale
+            rho_d = param_rgb(p, "diffuse_reflectance.value", 0.5) * scale
         return np.clip(rho_d, 0, 1), np.clip(f0 * rho_s_scale, 0, 1), n, texture, name
     if "eta.value" not in p:  # material "none": a perfect mirror
         f0 = np.ones(3)
     else:
-        eta, k = _rgb(p, "eta.value", 0.0), _rgb(p, "k.value", 0.0)
+        eta, k = param_rgb(p, "eta.value", 0.0), param_rgb(p, "k.value", 0.0)
         f0 = ((eta - 1) ** 2 + k ** 2) / ((eta + 1) ** 2 + k ** 2)
     return zero, np.clip(f0 * rho_s_scale, 0, 1), n, None, name
 
@@ -243,10 +234,10 @@ def xml_camera(mi, mi_scene, where: str) -> Camera | None:
 _SUMMARIES: dict = {}
 
 
-def xml_summary(path, where: str = "scene.mitsuba") -> tuple:
-    """(the file's sun (see :func:`load_mitsuba_xml`) or None, its film's (width, height) or None, its
-    point lights (P, 2, 3) position and intensity), read once per file version (path, size,
-    modification time) in a process."""
+def xml_summary(path, where: str = "scene.mitsuba") -> tuple[XmlEmitters, tuple | None]:
+    """(the file's emitters other than area lights (lightcuts.scene.mitsuba_emitters), its film's
+    (width, height) or None), read once per file version (path, size, modification time) in a
+    process; LightcutsError for an emitter that is not read."""
     p = regular_file(path, f"{where}: {path}")
     st = p.stat()
     key = (str(p.resolve()), st.st_size, st.st_mtime_ns)
@@ -255,48 +246,44 @@ def xml_summary(path, where: str = "scene.mitsuba") -> tuple:
         sensors = mi_scene.sensors()
         size = tuple(int(x) for x in sensors[0].film().size()) if sensors else None
         _SUMMARIES.clear()
-        sun, points = _emitters(mi, mi_scene, where)
-        _SUMMARIES[key] = (sun, size, points)
+        _SUMMARIES[key] = (read_emitters(mi, mi_scene, where), size)
     return _SUMMARIES[key]
 
 
 def xml_settings(cfg):
     """``cfg`` with what its ``scene.mitsuba`` file sets and the config does not: ``lights.sun``
-    from a directional emitter, ``camera.resolution`` from the film. LightcutsError
-    ``lights.sun: ...`` when both the config and the file give a sun."""
-    from lightcuts.config.schema import Sun
+    from a directional emitter, ``lights.environment`` (neither ``file`` nor ``procedural``: the
+    file's, :func:`lightcuts.lights.generate.load_environment`) from a constant or envmap emitter,
+    ``camera.resolution`` from the film. A config's ``lights.environment`` that names neither takes the
+    file's with its own ``count``. LightcutsError naming the ``lights`` key when the config and the
+    file both give a sun or an environment, when the config scales or rotates the file's
+    environment (the file's ``scale`` and ``to_world`` do that), or when the config asks for the
+    file's environment and the file has none."""
+    from lightcuts.config.schema import Environment, Sun
 
-    sun, size, _ = xml_summary(cfg.resolve(cfg.scene.mitsuba))
+    emitters, size = xml_summary(cfg.resolve(cfg.scene.mitsuba))
     lights, camera = cfg.lights, cfg.camera
+    sun, env, own = emitters.sun, emitters.environment, lights.environment
     if sun is not None:
         if lights.sun is not None:
             raise LightcutsError("lights.sun: the scene.mitsuba file has a directional emitter, its sun; "
                                  "remove one of the two")
         lights = lights.model_copy(update={"sun": Sun(direction=sun[0].tolist(), irradiance=sun[1].tolist())})
+    from_file = own is not None and own.file is None and own.procedural is None
+    if env is not None and own is not None and not from_file:
+        raise LightcutsError("lights.environment: the scene.mitsuba file has a constant or envmap emitter, its "
+                             "environment; remove one of the two")
+    if env is not None and own is not None and (own.scale != 1.0 or own.rotate != 0.0):
+        raise LightcutsError("lights.environment: scale and rotate do not apply to the scene.mitsuba file's "
+                             "environment (its emitter's scale and to_world give them)")
+    if env is None and from_file:
+        raise LightcutsError("lights.environment: gives neither file nor procedural, and the scene.mitsuba file "
+                             "has no constant or envmap emitter")
+    if env is not None and own is None:
+        lights = lights.model_copy(update={"environment": Environment()})
     if size is not None and camera.resolution is None:
         camera = camera.model_copy(update={"resolution": list(size)})
     return cfg.model_copy(update={"lights": lights, "camera": camera})
-
-
-def _emitters(mi, mi_scene, where) -> tuple[tuple | None, np.ndarray]:
-    """(the sun or None, the point lights (P, 2, 3): position and intensity W/sr per light)."""
-    suns, points = [], []
-    for e in mi_scene.emitters():
-        cls = e.class_name()
-        if cls == "AreaLight":
-            continue
-        p = mi.traverse(e)
-        if cls == "PointLight":
-            points.append((np.array(p["position"], np.float64).reshape(3), _rgb(p, "intensity.value", 1.0)))
-            continue
-        if cls != "DirectionalEmitter":
-            raise LightcutsError(f"{where}: emitter {cls!r} is not read (area, point and directional emitters are)")
-        m = np.array(p["to_world"].matrix, np.float64).reshape(4, 4)
-        d = m[:3, 2] / np.linalg.norm(m[:3, 2])
-        suns.append((-d, _rgb(p, "irradiance.value", 1.0)))
-    if len(suns) > 1:
-        raise LightcutsError(f"{where}: {len(suns)} directional emitters; lightcuts has one sun")
-    return (suns[0] if suns else None), np.array(points, np.float64).reshape(-1, 2, 3)
 
 
 #: How each mapped BSDF's lightcuts material relates to Mitsuba's (for reports).
@@ -335,7 +322,7 @@ def load_mitsuba_xml(path, name: str = "scene", where: str = "scene.mitsuba",
     textures take from."""
     budget = TexelBudget() if budget is None else budget
     mi, mi_scene = load_xml(path, where)
-    sun = _emitters(mi, mi_scene, where)[0]
+    sun = read_emitters(mi, mi_scene, where).sun
     parts, images = [], []
     for i, shape in enumerate(mi_scene.shapes()):
         label = f"{where}: shape {shape.id() or i}"
@@ -348,7 +335,7 @@ def load_mitsuba_xml(path, name: str = "scene", where: str = "scene.mitsuba",
             ep = mi.traverse(shape.emitter())
             raw = re.search(r"raw = 1", str(shape.emitter())) is not None
             emission = _texture(ep, "radiance", raw)[0].reshape(-1, 3).mean(axis=0).astype(np.float64) \
-                if "radiance.data" in ep else _rgb(ep, "radiance.value", 0.0)
+                if "radiance.data" in ep else param_rgb(ep, "radiance.value", 0.0)
         tex_id = -1
         if texture is not None and uv is not None:
             image, to_uv = texture

@@ -1,5 +1,6 @@
 """The scene types (see :mod:`lightcuts.registry`): the built-in Cornell box and the generated
-kitchen, building of rooms and gallery, each registered beside its code with the parameters it reads.
+kitchen, building of rooms, gallery, city and office, each registered beside its code with the
+parameters it reads.
 
 A config names a built-in type as ``scene.builtin: NAME`` and a generated one as ``scene.procedural:
 NAME`` or ``{type: NAME, param: value, ...}``; :func:`resolve_scene` resolves either in the plan
@@ -20,16 +21,18 @@ Outside packages add scene types through the entry-point group ``lightcuts.scene
 from __future__ import annotations
 
 from lightcuts.errors import LightcutsError
-from lightcuts.limits import MAX_SEED
+from lightcuts.limits import MAX_EMITTER_TRIANGLES, MAX_SEED
 from lightcuts.registry import Param, Registry, Resolved
 
 MAX_PROCEDURAL_TRIANGLES = 4_000_000
 MAX_ROOMS = 16
+#: The fewest emitting triangles a many-emitter type (city, office) is asked for.
+MIN_EMITTERS = 1000
 
 SCENES: Registry = Registry(
     "scene type", group="lightcuts.scenes",
     builtins=("lightcuts.scene.cornell", "lightcuts.scene.kitchen", "lightcuts.scene.rooms",
-              "lightcuts.scene.gallery"))
+              "lightcuts.scene.gallery", "lightcuts.scene.city", "lightcuts.scene.office"))
 
 #: The geometry's seed, apart from the run's ``seed`` so the scene stays when that changes.
 SEED = Param(int, 0, lo=0, hi=MAX_SEED, doc="the geometry's seed (the run's seed drives the lights)")
@@ -38,6 +41,13 @@ SEED = Param(int, 0, lo=0, hi=MAX_SEED, doc="the geometry's seed (the run's seed
 def triangles(default: int, doc: str = "the triangle count, hit within a few percent") -> Param:
     """The ``triangles`` parameter of a generated type, 10,000 to MAX_PROCEDURAL_TRIANGLES."""
     return Param(int, default, lo=10_000, hi=MAX_PROCEDURAL_TRIANGLES, doc=doc)
+
+
+def emitters(default: int) -> Param:
+    """The ``emitters`` parameter of a many-emitter type: its emitting triangles, MIN_EMITTERS to
+    MAX_EMITTER_TRIANGLES (lightcuts.limits)."""
+    return Param(int, default, lo=MIN_EMITTERS, hi=MAX_EMITTER_TRIANGLES,
+                 doc="the emitting triangles, hit within 1% (the scene grows its lights to meet it)")
 
 
 def resolve_scene(sc, *, has_meshes: bool | None = None) -> Resolved | None:

@@ -163,7 +163,12 @@ class Scene:
         """(2, 3) float64 axis-aligned bounding box of the vertices used by faces (computed once: a
         render asks for it per call, and the scan of the faces is tens of ms at 200K triangles)."""
         if "bounds" not in self._cache:
-            used = self.vertices[np.unique(self.faces)] if len(self.faces) else self.vertices
+            if len(self.faces):
+                mask = np.zeros(len(self.vertices), bool)  # not np.unique: seconds at 10^6 triangles
+                mask[self.faces.ravel()] = True
+                used = self.vertices[mask]
+            else:
+                used = self.vertices
             self._cache["bounds"] = np.stack([used.min(axis=0), used.max(axis=0)])
         return self._cache["bounds"].copy()
 

@@ -31,6 +31,12 @@ K_RANGE = {"cylinder": (6, 512), "annulus": (6, 512), "torus": (6, 256), "sphere
 Z_TO_Y = trimesh.transformations.rotation_matrix(-np.pi / 2, [1, 0, 0])
 
 
+def material(albedo, specular=(0, 0, 0), exponent=0.0, emission=(0, 0, 0)) -> Material:
+    """A palette entry: diffuse albedo, Phong specular reflectance and exponent, emitted radiance
+    (RGB each)."""
+    return Material(albedo=list(albedo), specular=list(specular), exponent=exponent, emission=list(emission))
+
+
 def pose(translate=(0.0, 0.0, 0.0), rot_y: float = 0.0, rot_x: float = 0.0) -> np.ndarray:
     """(4, 4) float64: rotate about x, then about y (radians), then translate (metres)."""
     m = trimesh.transformations.rotation_matrix(rot_y, [0, 1, 0]) @ \
@@ -155,28 +161,31 @@ def resolutions(items: list[Curved], budget: int) -> np.ndarray:
 
 @dataclass
 class PartList:
-    """Parts of a scene: per part (V, 3) vertices, (F, 3) faces, a material name, and whether the
-    part is a closed solid (watertight) or an open surface (emitter quads)."""
+    """Parts of a scene: per part (V, 3) vertices, (F, 3) faces, a material name, whether the
+    part is a closed solid (watertight) or an open surface (emitter quads), and its per-face
+    emission scale ((F,) float64 multiplying the material's emission, or None: 1)."""
 
     vertices: list = field(default_factory=list)
     faces: list = field(default_factory=list)
     materials: list = field(default_factory=list)
     closed: list = field(default_factory=list)
+    scales: list = field(default_factory=list)
 
-    def add(self, mesh, material: str, closed: bool = True) -> None:
-        """Append a trimesh (or a (vertices, faces) pair)."""
+    def add(self, mesh, material: str, closed: bool = True, scale=None) -> None:
+        """Append a trimesh (or a (vertices, faces) pair); ``scale`` (F,): per-face emission factors."""
         v, f = (mesh.vertices, mesh.faces) if isinstance(mesh, trimesh.Trimesh) else mesh
         self.vertices.append(np.asarray(v, np.float64))
         self.faces.append(np.asarray(f, np.int64))
         self.materials.append(material)
         self.closed.append(closed)
+        self.scales.append(None if scale is None else np.broadcast_to(np.asarray(scale, np.float64), len(f)))
 
     def extend(self, other: "PartList", matrix: np.ndarray | None = None) -> None:
         """Append ``other``'s parts, moved by the rigid (4, 4) ``matrix`` (rotation keeps windings)."""
-        for v, f, m, c in zip(other.vertices, other.faces, other.materials, other.closed):
+        for v, f, m, c, s in zip(other.vertices, other.faces, other.materials, other.closed, other.scales):
             if matrix is not None:
                 v = v @ matrix[:3, :3].T + matrix[:3, 3]
-            self.add((v, f), m, c)
+            self.add((v, f), m, c, s)
 
     def box(self, lo, hi, material: str, rot_y: float = 0.0) -> None:
         """An axis-aligned box [lo, hi] (metres), optionally turned by ``rot_y`` about its centre."""
@@ -230,5 +239,8 @@ class PartList:
         table = {a: np.array([getattr(mats[n], a) for n in names], np.float64)
                  for a in ("albedo", "specular", "exponent", "emission")}
         which = np.repeat([index[m] for m in self.materials], counts)
+        emission = table["emission"][which]
+        if any(s is not None for s in self.scales):
+            emission *= np.concatenate([np.ones(n) if s is None else s for s, n in zip(self.scales, counts)])[:, None]
         return Scene(np.concatenate(self.vertices), faces, table["albedo"][which], table["specular"][which],
-                     table["exponent"][which], table["emission"][which], camera=camera, name=name)
+                     table["exponent"][which], emission, camera=camera, name=name)

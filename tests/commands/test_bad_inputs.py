@@ -123,6 +123,11 @@ CASES = [
     ("config-missing", ["render", "nowhere.yaml"], None, None),
     ("config-unknown-key", ["render", "bad.yaml"], _config(render__epss=0.1), None),
     ("config-wrong-type", ["render", "bad.yaml"], _config(render__spp="many"), None),
+    ("config-clamp-key-of-other-mode", ["render", "bad.yaml"],
+     _config(render__clamp={"mode": "density", "min_distance": 0.05}), None),
+    ("config-clamp-both-modes-keys", ["render", "bad.yaml"],
+     _config(render__clamp={"min_distance": 0.05, "vpls": 100}), None),
+    ("config-clamp-negative-vpls", ["render", "bad.yaml"], _config(render__clamp={"vpls": -1}), None),
     ("config-no-scene", ["render", "bad.yaml"], _config(scene={}), None),
     ("config-missing-mesh", ["render", "bad.yaml"], _config(scene={"meshes": [{"file": "missing.obj"}]}), None),
     ("config-env-both", ["render", "bad.yaml"],
@@ -137,6 +142,15 @@ CASES = [
     ("config-fov-180", ["render", "bad.yaml"], _config(camera__fov=180), None),
     ("config-negative-count", ["render", "bad.yaml"], _config(lights__direct__count=-1), None),
     ("config-max-cut-0", ["render", "bad.yaml"], _config(render__max_cut=0), None),
+    # stochastic lightcuts and triangle lights
+    ("stochastic-max-cut-0", ["render", "bad.yaml"],
+     _config(render__integrator={"type": "stochastic-lightcuts", "max_cut": 0}), None),
+    ("direct-source-unknown", ["render", "bad.yaml"], _config(lights__direct__source="points"), None),
+    ("direct-triangles-lightcuts", ["render", "bad.yaml"], _config(lights__direct__source="triangles"), None),
+    ("direct-triangles-reference", ["render", "bad.yaml", "--reference"],
+     _config(lights__direct__source="triangles", render__integrator="stochastic-lightcuts"), None),
+    ("direct-triangles-compare-pixels", ["compare", "bad.yaml"],
+     _config(lights__direct__source="triangles", render__integrator="stochastic-lightcuts"), None),
     # procedural scenes
     ("procedural-unknown-key", ["render", "bad.yaml"],
      _config(scene={"procedural": {"type": "kitchen", "triangels": 20000}}), None),
@@ -152,6 +166,12 @@ CASES = [
     ("procedural-gallery-no-meshes", ["render", "bad.yaml"], _config(scene={"procedural": {"type": "gallery"}}), None),
     ("procedural-and-builtin", ["render", "bad.yaml"],
      _config(scene={"builtin": "cornell", "procedural": {"type": "kitchen"}}), None),
+    ("procedural-city-negative-emitters", ["render", "bad.yaml"],
+     _config(scene={"procedural": {"type": "city", "emitters": -1000}}), None),
+    ("procedural-office-too-many-emitters", ["render", "bad.yaml"],
+     _config(scene={"procedural": {"type": "office", "emitters": 4_000_001}}), None),
+    ("procedural-city-emitters-float", ["render", "bad.yaml"],
+     _config(scene={"procedural": {"type": "city", "emitters": 1e4}}), None),
     # --set
     ("set-not-yaml", ["render", "run.yaml", "--set", "name=[oops"], None, None),
     ("set-no-equals", ["render", "run.yaml", "--set", "render.eps"], None, None),
@@ -244,6 +264,8 @@ CASES = [
     # numbers that size work or memory, one past their limit (lightcuts.limits)
     ("spp-1e9", ["render", "run.yaml", "--set", "render.spp=1000000000"], None, None),
     ("spp-2**63-1", ["render", "run.yaml", "--set", f"render.spp={2**63 - 1}"], None, None),
+    ("path-light-sampler-unknown", ["render", "run.yaml", "--set", "render.integrator={type: path, light_sampler: foo}"],
+     None, None),
     ("gather-points-1e9", ["render", "run.yaml", "--set", "render.integrator=multidimensional",
                            "--set", "render.spp=1000000000"], None, None),
     ("eye-rays", ["render", "run.yaml", "--set", "camera.resolution=[8192,4096]", "--set", "render.spp=2049"],
@@ -262,12 +284,34 @@ CASES = [
     ("accel-repeats-1e9", ["accel", "run.yaml", "--repeats", "1000000000"], None, None),
     ("reference-spp-2**40", ["reference", "run.yaml", "--renderer", "lightcuts", "--spp", str(2**40)], None, None),
     ("reference-max-depth-2**40", ["reference", "run.yaml", "--max-depth", str(2**40)], None, None),
+    # the efficiency study's rows and options
+    ("study-unknown-integrator", ["study", "run.yaml", "--row", "nope"], None, None),
+    ("study-row-unknown-key", ["study", "run.yaml", "--row", "path render.epss=1"], None, None),
+    ("study-row-integrator-param", ["study", "run.yaml", "--row", "path:colour=red"], None, None),
+    ("study-row-unknown-option", ["study", "run.yaml", "--row", "path colour=red"], None, None),
+    ("study-row-builders-without-trees", ["study", "run.yaml", "--row", "path builders=agglomerative"], None, None),
+    ("study-unknown-builder", ["study", "run.yaml", "--builders", "nope"], None, None),
+    ("study-row-changes-camera", ["study", "run.yaml", "--row", "path camera.resolution=[8,8]"], None, None),
+    ("study-row-samples-2**40", ["study", "run.yaml", "--row", f"path samples=1,{2**40}"], None, None),
+    ("study-unknown-tracer", ["study", "run.yaml", "--row", "tracer:nope"], None, None),
+    ("study-unknown-renderer", ["study", "run.yaml", "--renderer", "nope"], None, None),
+    ("study-reference-sun", ["study", "bad.yaml"],
+     _config(lights__sun={"direction": [0, -1, 0], "irradiance": [1, 1, 1]}), None),
+    ("study-reference-spp-2**40", ["study", "run.yaml", "--reference-spp", str(2**40)], None, None),
+    ("study-rows-file-missing", ["study", "run.yaml", "--rows", "nowhere.yaml"], None, None),
+    ("study-rows-file-not-rows", ["study", "run.yaml", "--rows", "garbage.exr"], None, None),
+    ("study-times-text", ["study", "run.yaml", "--times", "ten"], None, None),
+    ("study-times-0", ["study", "run.yaml", "--times", "0,10"], None, None),
+    ("study-budget-0", ["study", "run.yaml", "--budget", "0"], None, None),
+    ("study-epsilon-nan", ["study", "run.yaml", "--epsilon", "nan"], None, None),
+    ("study-out-user-folder", ["study", "run.yaml", "--out", "mine"], None, None),
 ]
 #: Every command, with an --out where nothing can be written: /proc and /sys refuse new entries even
 #: to root, who passes every permission check.
 UNWRITABLE = ["/proc/lightcuts-out", "/sys/lightcuts-out/deeper"]
 OUT_COMMANDS = {"render": [], "lights": [], "tree": [], "compare": [], "scaling": ["--sizes", "100"],
-                "scaling-gather": ["--gather", "1,4"], "accel": [], "reference": ["--renderer", "lightcuts"]}
+                "scaling-gather": ["--gather", "1,4"], "accel": [], "reference": ["--renderer", "lightcuts"],
+                "study": []}
 CASES += [(f"unwritable-{where.split('/')[1]}-{name}", [name.split("-")[0], "run.yaml", *extra, "--out", where],
            None, None) for name, extra in OUT_COMMANDS.items() for where in UNWRITABLE]
 
@@ -411,6 +455,7 @@ OPTION_BOUNDS = [
     (["reference", "run.yaml"], "--max-depth", limits.MAX_BOUNCES),
     (["compare", "run.yaml", "--mitsuba"], "--mitsuba-spp", limits.MAX_REFERENCE_SPP),
     (["compare", "run.yaml", "--mitsuba"], "--mitsuba-passes", limits.MAX_PASSES),
+    (["study", "run.yaml"], "--reference-spp", limits.MAX_REFERENCE_SPP),
 ]
 
 

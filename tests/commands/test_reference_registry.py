@@ -98,3 +98,26 @@ def test_gather_scaling_compares_the_integrators_declaring_cuts_per(scratch_regi
     INTEGRATORS.register("z-per-eye-ray", INTEGRATORS.get("lightcuts"), **INTEGRATORS.entry("lightcuts").traits)
     INTEGRATORS.register("path-again", INTEGRATORS.get("path"), **INTEGRATORS.entry("path").traits)
     assert [e.name for e in compared()] == ["lightcuts", "z-per-eye-ray", "a-per-pixel", "multidimensional"]
+
+
+def test_lightcuts_reference_draws_as_the_configs_path_integrator():
+    """The `lightcuts` reference's next-event estimation follows the config's own `path` integrator
+    (a light tree when it says so) and draws by power otherwise."""
+    import numpy as np
+
+    from lightcuts.accel import make_caster
+    from lightcuts.api import load_config as api_config
+    from lightcuts.integrators.path import path_trace
+    from lightcuts.scene.build import scene_from_config
+
+    tree = api_config(ROOT / "configs" / "cornell.yaml", **{"camera.resolution": [16, 16],
+                                                           "render.integrator": {"type": "path", "light_sampler": "tree"}})
+    power = api_config(ROOT / "configs" / "cornell.yaml", **{"camera.resolution": [16, 16]})
+    scene = scene_from_config(power)
+    caster = make_caster(scene)
+    ref = make_reference("lightcuts")
+    a, _ = ref.render(tree, scene, None, 2, 3)
+    b, _ = ref.render(power, scene, None, 2, 3)
+    np.testing.assert_array_equal(a, path_trace(scene, caster, spp=2, seed=3, light_sampler="tree")[0])
+    np.testing.assert_array_equal(b, path_trace(scene, caster, spp=2, seed=3)[0])
+    assert not np.array_equal(a, b)

@@ -62,7 +62,8 @@ def write(tmp_path, text, name="run.yaml"):
     ("scene: {builtin: cornell}\nlights: {direct: {count: 1.5}}\n", "lights.direct.count:"),
     ("scene: {meshes: [{file: nothere.obj}]}\n", "scene.meshes.0.file: no such file"),
     ("scene: {builtin: cornell}\nlights: {environment: {file: sky.exr}}\n", "lights.environment.file: no such file"),
-    ("scene: {builtin: cornell}\nlights: {environment: {count: 4}}\n", "lights.environment: give exactly one"),
+    ("scene: {builtin: cornell}\nlights: {environment: {count: 4}}\n",
+     "lights.environment: give file or procedural (neither: the environment of a scene.mitsuba file)"),
     ("render: {eps: 0.1}\n", "scene: Field required"),
     ("scene: {}\n", "scene: needs builtin, procedural, mitsuba, meshes or emitters"),
     ("scene: [1, 2\n", "invalid YAML"),
@@ -251,7 +252,7 @@ def test_readme_table_of_limits_is_lightcuts_limits():
 @pytest.mark.parametrize("key, hint", [
     ("render.epss", "(did you mean render.eps?)"), ("rendr.eps", "(did you mean render?)"),
     ("camera.resolutoin", "(did you mean camera.resolution?)"),
-    ("lights.direct.zzz", "(known: count)"),
+    ("lights.direct.zzz", "(known: count, source)"),
 ])
 def test_unknown_key_suggests_the_nearest(tmp_path, key, hint):
     p = write(tmp_path, "scene: {builtin: cornell}\n")

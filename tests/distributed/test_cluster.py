@@ -35,6 +35,11 @@ CONFIGS = {"cornell": ("cornell.yaml", SMALL),
                                                          "render.integrator": "multidimensional"}),
            "cornell-path": ("cornell.yaml", {**SMALL, "render.spp": "4", "render.passes": "2",
                                              "render.integrator": "{type: path, max_depth: 8}"}),
+           "cornell-path-tree": ("cornell.yaml", {**SMALL, "render.spp": "4", "render.passes": "2",
+                                                  "render.integrator": "{type: path, max_depth: 8, light_sampler: tree}"}),
+           "cornell-stochastic": ("cornell.yaml", {**SMALL, "render.spp": "2", "render.passes": "2",
+                                                   "lights.direct.source": "triangles",
+                                                   "render.integrator": "{type: stochastic-lightcuts, max_cut: 8}"}),
            "kitchen-passes": ("kitchen.yaml", {**SMALL, "scene.procedural.triangles": "20000", "render.passes": "3",
                                                 "render.compensation": "true"}),
            "kitchen-slow": ("kitchen.yaml", {**SMALL, "scene.procedural.triangles": "20000",
@@ -109,7 +114,8 @@ def test_the_python_api_renders_and_compares_on_a_client_or_an_address(cluster):
 
 
 @SPAWNS
-@pytest.mark.parametrize("name", ["cornell", "kitchen", "cornell-multidimensional", "cornell-path"])
+@pytest.mark.parametrize("name", ["cornell", "kitchen", "cornell-multidimensional", "cornell-path", "cornell-path-tree",
+                                  "cornell-stochastic"])
 def test_tiles_give_the_local_bytes_whatever_their_size(cluster, name):
     from lightcuts.distributed.worker import runs
 
@@ -125,6 +131,8 @@ def test_tiles_give_the_local_bytes_whatever_their_size(cluster, name):
         assert rec["workers"] == 2 and rec["ship_bytes"] > 0 and rec["given"] == cluster.address
         assert r.report["clamping"]["clamped_energy_fraction"] == pytest.approx(
             local(name).report["clamping"]["clamped_energy_fraction"], rel=1e-7)  # from the tiles' means
+        sampler = {k: v for k, v in r.report.get("light_sampler", {}).items() if k != "build_seconds"}
+        assert sampler == {k: v for k, v in local(name).report.get("light_sampler", {}).items() if k != "build_seconds"}
 
 
 @SPAWNS
@@ -479,6 +487,8 @@ def test_a_run_builds_its_light_forest_once_for_its_tiles():
     """Run.forest: one forest per (lights, trees) the tiles share, a new one for other lights; the
     tiles' bytes with it are the local ones (the tests above)."""
     from lightcuts.distributed.worker import Run
+    from lightcuts.integrators.lightcut import Lightcuts
+    from lightcuts.integrators.path import Path
     from lightcuts.lights.direct import direct_lights
     from lightcuts.scene.cornell import cornell_box
     from lightcuts.trees import build_tree
@@ -487,8 +497,17 @@ def test_a_run_builds_its_light_forest_once_for_its_tiles():
     lights = {"oriented": direct_lights(scene, 64, seed=1)}
     trees = {"oriented": build_tree(lights["oriented"], "agglomerative", seed=1)}
     run = Run(None, scene, None, None, 0.0)
-    f = run.forest(lights, trees)
-    assert run.forest(lights, trees) is f and len(f.light_f) == 64
-    assert run.forest(lights, None) is not f and run.forest(lights, None) is run.forest(lights, None)
+    integ = Lightcuts()
+    f = run.forest(integ, lights, trees)
+    assert run.forest(integ, lights, trees) is f and len(f.light_f) == 64
+    ref = integ.reference()
+    assert run.forest(ref, lights, None) is not f and run.forest(ref, lights, None) is run.forest(ref, lights, None)
     other = {"oriented": direct_lights(scene, 32, seed=2)}
-    assert len(run.forest(other, {"oriented": build_tree(other["oriented"], "agglomerative", seed=1)}).light_f) == 32
+    other_trees = {"oriented": build_tree(other["oriented"], "agglomerative", seed=1)}
+    assert len(run.forest(integ, other, other_trees).light_f) == 32
+    # the path integrator's light tree over the scene's emitting triangles: once per run too
+    path_run = Run(None, scene, None, None, 0.0)
+    tree = Path(light_sampler="tree")
+    made = path_run.forest(tree, lights, trees)
+    assert made.record["type"] == "tree" and made.n_lights == {"oriented": 2}
+    assert path_run.forest(tree, lights, trees) is made

@@ -48,7 +48,8 @@ def test_passes_are_the_mean_of_the_pass_seeds_path_images():
     assert run.image.tobytes() == (acc / 3).astype(np.float32).tobytes()
     assert [p["seed"] for p in run.report["passes"]] == [pass_seed(11, p) for p in range(3)]
     assert run.report["cut_size_unit"] == "path vertices per eye ray"
-    assert run.report["plugins"]["integrator"] == {"type": "path", "max_depth": 64}
+    assert run.report["plugins"]["integrator"] == {"type": "path", "max_depth": 64, "light_sampler": "power"}
+    assert run.report["light_sampler"]["type"] == "power" and run.report["light_sampler"]["lights"] == 2
 
 
 def test_paths_have_at_most_max_depth_vertices():
@@ -91,7 +92,8 @@ def test_a_sun_a_reference_or_a_compare_is_one_line_before_any_work(tmp_path):
                           (["render", str(CORNELL), *path, "--reference"],
                            "error: --reference: integrator 'path' has no brute-force reference"),
                           (["compare", str(CORNELL), *path],
-                           "error: render.integrator: integrator 'path' uses no light trees")]:
+                           "error: render.integrator: integrator 'path' does not render the config's lights through their "
+                           "trees")]:
         rc, calls, err = cli_recording_work(argv + ["--out", "out"], tmp_path)
         assert (rc, calls) == (2, []), err
         assert err.strip().splitlines() == [err.strip()] and err.strip().startswith(message), err

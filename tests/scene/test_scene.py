@@ -587,3 +587,11 @@ def test_scene_roundtrips_through_npz(tmp_path):
         np.testing.assert_array_equal(getattr(t, f), getattr(s, f))
     np.testing.assert_array_equal(t.camera.as_array(), s.camera.as_array())
     assert t.name == "rt"
+
+
+def test_bounds_are_those_of_the_vertices_faces_use():
+    """A vertex no face uses (a loader's leftover) stays out of the box; without faces, every vertex."""
+    v = np.array([[0.0, 0, 0], [1, 0, 0], [0, 2, 0], [50, -9, 7], [0, 0, 3]])
+    s = Scene(v, [[0, 1, 2], [0, 2, 4]], 0.5, 0.0, 0.0, 0.0)
+    np.testing.assert_array_equal(s.bounds, [[0, 0, 0], [1, 2, 3]])
+    np.testing.assert_array_equal(Scene(v, np.zeros((0, 3)), 0.5, 0.0, 0.0, 0.0).bounds, [[0, -9, 0], [50, 2, 7]])

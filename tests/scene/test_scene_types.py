@@ -34,6 +34,14 @@ def write(tmp_path, text, name="run.yaml"):
     ("scene: {procedural: {type: rooms, seed: -1}}\n", "scene.procedural.seed: -1 is below the minimum 0"),
     ("scene: {procedural: {type: kitchen, triangles: 2.5e4}}\n", "scene.procedural.triangles: expected int"),
     ("scene: {procedural: {type: gallery}}\n", "scene.procedural: type gallery needs scene.meshes (the exhibits)"),
+    ("scene: {procedural: {type: city, emitters: -1}}\n", "scene.procedural.emitters: -1 is below the minimum 1000"),
+    ("scene: {procedural: {type: office, emitters: 999}}\n", "scene.procedural.emitters: 999 is below the minimum 1000"),
+    ("scene: {procedural: {type: office, emitters: 4000001}}\n",
+     "scene.procedural.emitters: 4000001 is above the maximum 4e+06"),
+    ("scene: {procedural: {type: city, emitters: 1.0e4}}\n", "scene.procedural.emitters: expected int"),
+    ("scene: {procedural: {type: city, seed: -2}}\n", "scene.procedural.seed: -2 is below the minimum 0"),
+    ("scene: {procedural: {type: office, triangles: 20000}}\n",
+     "scene.procedural.triangles: scene type 'office' has no parameter 'triangles' (it reads: emitters, seed)"),
 ])
 def test_bad_scene_types_name_the_key(tmp_path, text, expected):
     """The config loads (it has the right shape); the plan's resolution fails with one line."""
@@ -60,6 +68,8 @@ def test_defaults_are_the_declared_ones():
     assert dict(SCENES.resolve("kitchen", "k").params) == {"seed": 0, "triangles": 200_000}
     assert dict(SCENES.resolve("rooms", "r").params) == {"rooms": 4, "seed": 0, "triangles": 100_000}
     assert dict(SCENES.resolve("gallery", "g").params) == {} == dict(SCENES.resolve("cornell", "c").params)
+    assert dict(SCENES.resolve("city", "c").params) == {"emitters": 100_000, "seed": 0} \
+        == dict(SCENES.resolve("office", "o").params)
 
 
 def test_name_and_type_mapping_give_the_same_bytes(tmp_path):

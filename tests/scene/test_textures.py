@@ -274,6 +274,8 @@ def test_a_gltf_renders_like_its_obj_mtl_equivalent(tmp_path):
 
 @pytest.mark.parametrize("render", [{"render.compensation": True, "render.clamp.enabled": True,
                                      "render.clamp.min_distance": 0.3}, {"render.integrator": "multidimensional"},
+                                    {"render.integrator": "stochastic-lightcuts", "render.spp": 2},
+                                    {"render.integrator": "stochastic-lightcuts", "lights.direct.source": "triangles"},
                                     "path_trace"])
 def test_a_one_colour_texture_is_the_same_as_that_albedo_everywhere(tmp_path, render):
     """Every kernel that reads an albedo (eye hits, VPL colours in the particle tracer, continuation

@@ -18,6 +18,7 @@ from numba import njit
 
 from lightcuts.accel.kernel_api import new_scratch
 from lightcuts.accel.packets import new_ray_packet
+from lightcuts.config.schema import DEFAULT_CLAMP_VPLS
 from lightcuts.errors import LightcutsError
 from lightcuts.parallel import next_task
 from lightcuts.registry import Param, declare
@@ -125,11 +126,12 @@ class Multidimensional(CutIntegrator):
     """
 
     def __init__(self, *, spp: int = 16, eps: float = 0.02, max_cut: int = 1000, clamp: bool = True,
-                 clamp_min_distance: float = 0.05, visibility: bool = True, aperture: float = 0.0,
+                 clamp_vpls: float = DEFAULT_CLAMP_VPLS, clamp_min_distance: float | None = None,
+                 visibility: bool = True, aperture: float = 0.0,
                  focus_distance: float | None = None, representatives: int = DEFAULT_REPRESENTATIVES,
                  gather_representatives: int = DEFAULT_GATHER_REPRESENTATIVES, all_pairs: bool = False):
-        super().__init__(spp=spp, eps=eps, max_cut=max_cut, clamp=clamp, clamp_min_distance=clamp_min_distance,
-                         visibility=visibility)
+        super().__init__(spp=spp, eps=eps, max_cut=max_cut, clamp=clamp, clamp_vpls=clamp_vpls,
+                         clamp_min_distance=clamp_min_distance, visibility=visibility)
         self.aperture = check_non_negative(aperture, "camera.aperture")
         if focus_distance is not None and not (focus_distance > 0 and math.isfinite(focus_distance)):
             raise LightcutsError(f"camera.focus_distance: {focus_distance} must be a finite number > 0")
@@ -145,8 +147,8 @@ class Multidimensional(CutIntegrator):
     def reference(self) -> "Multidimensional":
         """Every gather point of every pixel with every light (one shadow ray each): the same gather
         points."""
-        return Multidimensional(spp=self.spp, eps=self.eps, max_cut=self.max_cut, clamp=self.clamp,
-                                clamp_min_distance=self.clamp_min_distance, visibility=self.visibility,
+        return Multidimensional(spp=self.spp, eps=self.eps, max_cut=self.max_cut, **self.clamp_settings(),
+                                visibility=self.visibility,
                                 aperture=self.aperture, focus_distance=self.focus_distance,
                                 representatives=self.representatives,
                                 gather_representatives=self.gather_representatives, all_pairs=True)
@@ -164,14 +166,15 @@ class Multidimensional(CutIntegrator):
             light_representatives(fo.node_f, fo.node_k, self.representatives, f.seed, lreps)
         head = (*f.caster, f.cam, f.seed, spp, f.sx, f.sy, self.aperture, focus)
         tail = (*f.surfaces, fo.node_b, fo.node_bi, fo.roots, fo.light_f, fo.light_i, lreps,
-                self.gather_representatives, *f.env, self.eps, pair_budget, self.clamp_d2(f.scene), f.ray_offset,
+                self.gather_representatives, *f.env, self.eps, pair_budget, self.clamp_d2(f.scene, fo), f.ray_offset,
                 self.visibility, self.brute_force)
         return Band(_render_band, head, tail, max(1, BAND_PIXELS // max(1, f.cols * spp // 4)), CHUNK)
 
 
 def render_multidimensional(scene, caster, lights: dict, trees: dict | None, camera=None, spp: int = 16,
                             eps: float = 0.02, max_cut: int = 1000, clamp: bool = True,
-                            clamp_min_distance: float = 0.05, envmap=None, seed: int = 0, crop=None,
+                            clamp_vpls: float = DEFAULT_CLAMP_VPLS, clamp_min_distance: float | None = None,
+                            envmap=None, seed: int = 0, crop=None,
                             progress=None, reference: bool = False, visibility: bool = True, pixels=None,
                             aperture: float = 0.0, focus_distance: float | None = None,
                             representatives: int = DEFAULT_REPRESENTATIVES,
@@ -180,8 +183,9 @@ def render_multidimensional(scene, caster, lights: dict, trees: dict | None, cam
     """The :class:`Multidimensional` integrator of these settings (with ``reference=True``, its
     reference: every gather point with every light; ``trees`` may be None) rendering in one call;
     arguments as the integrator's constructor and :meth:`~lightcuts.integrators.registry.Integrator.render`."""
-    integ = Multidimensional(spp=spp, eps=eps, max_cut=max_cut, clamp=clamp, clamp_min_distance=clamp_min_distance,
-                             visibility=visibility, aperture=aperture, focus_distance=focus_distance,
+    integ = Multidimensional(spp=spp, eps=eps, max_cut=max_cut, clamp=clamp, clamp_vpls=clamp_vpls,
+                             clamp_min_distance=clamp_min_distance, visibility=visibility, aperture=aperture,
+                             focus_distance=focus_distance,
                              representatives=representatives, gather_representatives=gather_representatives)
     if reference:
         integ = integ.reference()
