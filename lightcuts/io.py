@@ -98,7 +98,7 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
 
 def as_path(value, key: str) -> Path:
     """``value`` as a Path; LightcutsError naming ``key`` unless it is a str or os.PathLike naming a
-    path (not empty, no NUL character)."""
+    path (not empty, no NUL character, encodable as a file name: a lone surrogate is not)."""
     if not isinstance(value, (str, os.PathLike)):
         raise LightcutsError(f"{key} {value!r}: expected a path (str or os.PathLike), got {type(value).__name__}")
     try:
@@ -107,6 +107,10 @@ def as_path(value, key: str) -> Path:
         raise LightcutsError(f"{key} {value!r}: expected a path ({one_line(exc)})") from None
     if not isinstance(text, str) or not text or "\0" in text:
         raise LightcutsError(f"{key} {value!r}: expected a path (a non-empty text without NUL characters)")
+    try:
+        os.fsencode(text)
+    except UnicodeError as exc:
+        raise LightcutsError(f"{key} {value!r}: not a file name this system can encode ({exc.reason})") from None
     return Path(text)
 
 

@@ -231,6 +231,13 @@ def test_fuzz_compare(tiny, tmp_path, monkeypatch, kind, key, value, builders, m
     assert c is None or (len(c.rows) >= 1 and all(r["cut_mean"] > 0 for r in c.rows))
 
 
+def test_save_to_unencodable_folder_name_is_one_line(results, tmp_path):
+    """A lone surrogate cannot become a file name: one LightcutsError naming the key, nothing written."""
+    with pytest.raises(LightcutsError, match="folder .*not a file name this system can encode"):
+        results[0].save(str(tmp_path / "a\ud800b"))
+    assert list(tmp_path.iterdir()) == []
+
+
 @_FUZZ
 @given(folder=st.sampled_from(["new", "file"] + UNWRITABLE) | _JUNK, which=st.sampled_from([0, 1]))
 def test_fuzz_save(results, tmp_path, monkeypatch, folder, which):
