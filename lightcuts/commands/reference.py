@@ -148,23 +148,20 @@ def _study(args, cfg, plan, overrides, out_dir: Path, tracer) -> dict:
 
 
 def _lightcuts_image(args, cfg, plan, scene, envmap, warmup: list) -> tuple[np.ndarray, dict, np.ndarray]:
-    """lightcuts' image of the run (all its passes), its figures (lights, seconds) and the pixels
-    that see an emitter directly (:func:`lightcuts.integrators.primary.emitter_mask`)."""
-    from lightcuts.pipeline.passes import render_passes
+    """lightcuts' image of the run (all its passes), its figures (lights, none for an integrator that
+    renders from no lights and trees; seconds) and the pixels that see an emitter directly
+    (:func:`lightcuts.integrators.primary.emitter_mask`)."""
+    from lightcuts.pipeline.passes import pass_lights, render_passes
     from lightcuts.pipeline.rendering import image_seconds
-    from lightcuts.pipeline.warmup import compile_seconds, finish_warmup, start_render_warmup
+    from lightcuts.pipeline.warmup import finish_warmup, start_render_warmup
     from lightcuts.integrators.primary import emitter_mask
 
     t0 = time.perf_counter()
     if plan.caster.trait("warm_render_kernel", False):
         warmup.append(start_render_warmup(plan.integrator.trait("kernels")))
     with plan.make_caster(scene) as caster:
-        t1, c1 = time.perf_counter(), compile_seconds()
-        light_sets = plan.lights(scene, caster, envmap)
-        t2, c2 = time.perf_counter(), compile_seconds()
-        trees = plan.trees(light_sets)
+        light_sets, trees, t_lights, t_trees = pass_lights(plan, scene, caster, envmap, cfg.seed)
         t_pre = time.perf_counter() - t0
-        t_lights, t_trees = t2 - t1 - (c2 - c1), time.perf_counter() - t2 - (compile_seconds() - c2)
         result = render_passes(cfg, plan, scene, caster, envmap, desc=f"{cfg.name}: lightcuts",
                                progress=not args.no_progress, lights=light_sets, trees=trees,
                                before_render=lambda: finish_warmup(warmup[0] if warmup else None))

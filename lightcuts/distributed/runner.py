@@ -53,18 +53,14 @@ def tile_task(token, cfg, scene, envmap, lights, trees, window, reference: bool)
 
 def pass_task(token, cfg, scene, envmap, p: int) -> dict:
     """On a worker: pass ``p`` > 0 of a converging render, as :func:`lightcuts.pipeline.passes.render_passes`
-    makes it: lights and trees from the pass's seed, then the image."""
+    makes it: lights and trees from the pass's seed (none for an integrator that renders from
+    neither), then the image."""
     def body(run):
-        from lightcuts.pipeline.passes import pass_seed
+        from lightcuts.pipeline.passes import pass_lights, pass_seed
         from lightcuts.pipeline.timing import render_timed
 
         seed = pass_seed(cfg.seed, p)
-        t0 = time.perf_counter()
-        ls = run.plan.lights(run.scene, run.caster, envmap, seed=seed)
-        t_lights = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        tr = run.plan.trees(ls, seed=seed)
-        t_build = time.perf_counter() - t0
+        ls, tr, t_lights, t_build = pass_lights(run.plan, run.scene, run.caster, envmap, seed)
         result, t_render, _ = render_timed(cfg.model_copy(update={"seed": seed}), run.scene, run.caster, ls, tr, envmap,
                                            no_progress=True, integrator=run.plan.integrator, load=False)
         return {"seed": seed, "result": result, "lights_seconds": t_lights, "build_seconds": t_build,

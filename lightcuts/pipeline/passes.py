@@ -113,12 +113,31 @@ class PassMean:
         return Passes(image, cut_size, r0, self.rays, self.eye, self.clamped / n, load, self.records, lights, trees)
 
 
+def pass_lights(plan, scene, caster, envmap, seed: int) -> tuple[dict, dict | None, float, float]:
+    """A pass's light sets and trees from the run seed ``seed`` and the seconds of each, numba's
+    compiling left out: ``(lights, trees, lights_seconds, build_seconds)``; ``({}, None, 0.0, 0.0)``
+    where the plan's integrator renders from neither (:attr:`~lightcuts.pipeline.plan.Plan.uses_trees`;
+    the path tracer draws the scene's emitting triangles itself), so a pass's time is what its image
+    needs."""
+    from lightcuts.pipeline.warmup import compile_seconds
+
+    if not plan.uses_trees:
+        return {}, None, 0.0, 0.0
+    t0, c0 = time.perf_counter(), compile_seconds()
+    lights = plan.lights(scene, caster, envmap, seed=seed)
+    t_lights = time.perf_counter() - t0 - (compile_seconds() - c0)
+    t0, c0 = time.perf_counter(), compile_seconds()
+    trees = plan.trees(lights, seed=seed)
+    return lights, trees, t_lights, time.perf_counter() - t0 - (compile_seconds() - c0)
+
+
 def render_passes(cfg, plan, scene, caster, envmap, *, desc: str = "lightcuts", progress: bool = True,
                   lights: dict | None = None, trees: dict | None = None, on_pass=None, before_render=None) -> Passes:
     """Render ``cfg.render.passes`` passes (module docstring) with the plan's integrator.
 
     lights, trees : pass 0's, when the caller has made them already (their time is then not in
-    pass 0's record); on_pass(p, running_mean (H, W, 3) float64, seconds so far) after each pass;
+    pass 0's record); otherwise each pass's are :func:`pass_lights`' (none for an integrator that
+    renders from neither); on_pass(p, running_mean (H, W, 3) float64, seconds so far) after each pass;
     before_render() once, before pass 0's image (e.g. waiting for the kernel's compile child).
     """
     from lightcuts.pipeline.timing import render_timed
@@ -130,12 +149,10 @@ def render_passes(cfg, plan, scene, caster, envmap, *, desc: str = "lightcuts", 
     for p in range(n):
         seed = pass_seed(cfg.seed, p)
         pcfg = cfg if p == 0 else cfg.model_copy(update={"seed": seed})
-        t0 = time.perf_counter()
-        ls = lights if (p == 0 and lights is not None) else plan.lights(scene, caster, envmap, seed=seed)
-        t_lights = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        tr = trees if (p == 0 and trees is not None) else plan.trees(ls, seed=seed)
-        t_build = time.perf_counter() - t0
+        if p == 0 and lights is not None:
+            ls, tr, t_lights, t_build = lights, trees, 0.0, 0.0
+        else:
+            ls, tr, t_lights, t_build = pass_lights(plan, scene, caster, envmap, seed)
         if p == 0 and before_render is not None:
             before_render()
         label = desc if n == 1 else f"{desc} pass {p + 1}/{n}"

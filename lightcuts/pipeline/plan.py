@@ -54,6 +54,15 @@ class Plan:
 
         return load_environment(self.cfg)
 
+    @property
+    def uses_trees(self) -> bool:
+        """Whether its integrator renders from the config's lights and light trees
+        (:func:`uses_trees`); a render whose integrator does not makes neither."""
+        from lightcuts.integrators.registry import INTEGRATORS
+
+        integrator = self.integrator or INTEGRATORS.resolve(self.cfg.render.integrator, "render.integrator")
+        return uses_trees(self.cfg, integrator)
+
     def lights(self, scene, caster=None, envmap=None, seed: int | None = None) -> dict:
         """Light sets by type, seeded by ``seed`` (default ``cfg.seed``); a caster is built if
         indirect lights need one."""
@@ -72,6 +81,15 @@ class Plan:
 
         seed = self.cfg.seed if seed is None else int(seed)
         return {typ: build_tree(ls, self.tree, seed=seed) for typ, ls in light_sets.items()}
+
+
+def uses_trees(cfg, resolved) -> bool:
+    """Whether the integrator ``resolved`` (a Resolved ``render.integrator``) of ``cfg`` renders from
+    lights and light trees: the integrator object's ``uses_trees`` where it has one (an integrator
+    whose use of trees depends on its parameters says so there), else its entry's ``forest`` trait."""
+    from lightcuts.integrators.registry import make_integrator
+
+    return bool(getattr(make_integrator(cfg, resolved), "uses_trees", resolved.trait("forest", False)))
 
 
 def plan_run(cfg: RunConfig, *, render: bool = False, tree: TreeSpec | None = None) -> Plan:

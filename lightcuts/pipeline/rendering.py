@@ -62,9 +62,9 @@ class Render:
         with output_set(out, keep=SUBRUN_FOLDERS) as tmp:
             write_exr(tmp / "image.exr", self.image)
             write_png(tmp / "image.png", self.image, cfg.render.tonemap)
+            by = report["builder"] or report["plugins"]["integrator"]["type"]  # no trees: the integrator
             write_heatmap(tmp / "cutsize.png", self.cut_size, label=f"cut size ({report['cut_size_unit']})",
-                          title=f"{cfg.name}: {report['builder']}, eps {cfg.render.eps:g}, "
-                                f"mean cut {report['cut_size_mean']:.0f}")
+                          title=f"{cfg.name}: {by}, eps {cfg.render.eps:g}, mean cut {report['cut_size_mean']:.0f}")
             if self.reference is not None:
                 write_exr(tmp / "reference.exr", self.reference)
                 write_png(tmp / "reference.png", self.reference, cfg.render.tonemap)
@@ -76,8 +76,7 @@ class Render:
         """The one-line summary ``lightcuts render`` prints (size, lights, cut, rays, seconds, and the
         error against the reference when there is one)."""
         r = self.report
-        line = (f"{r['name']}: {r['resolution'][0]}x{r['resolution'][1]}, "
-                f"{sum(r['lights'].values())} lights, builder {r['builder']}: "
+        line = (f"{r['name']}: {r['resolution'][0]}x{r['resolution'][1]}, {self._lights()}: "
                 f"cut {r['cut_size_mean']:.1f} avg / {r['cut_size_max']:.0f} max, "
                 f"{r['shadow_rays_per_pixel']:.1f} shadow rays/pixel, "
                 f"preprocess {r['preprocess_seconds']:.2f} s, build {r['build_seconds']:.2f} s, "
@@ -87,6 +86,17 @@ class Render:
             line += (f"; vs reference: median {100 * e['median']:.2f}%, p99 {100 * e['p99']:.2f}%, "
                      f"speed-up {r['reference']['speedup']:.0f}x")
         return line
+
+    def _lights(self) -> str:
+        """The summary's lights: the config's and their builder, or those the integrator draws itself
+        (its ``light_sampler`` record: how many, by what, through which builder's tree)."""
+        r = self.report
+        if r["lights"]:
+            return f"{sum(r['lights'].values())} lights, builder {r['builder']}"
+        s = r.get("light_sampler", {})
+        if "lights" not in s:
+            return "no lights"
+        return f"{s['lights']} lights drawn by {s['type']}" + (f", builder {r['builder']}" if r["builder"] else "")
 
     def __repr__(self) -> str:
         return f"<Render {self.summary()}>"
@@ -165,19 +175,21 @@ def _run(cfg, plan, source, reference: bool, progress: bool, warmup: list, runne
         warmup.append(start_render_warmup(plan.integrator.trait("kernels")))
     caster = plan.make_caster(scene)
     envmap = plan.environment()
-    phase("lights")
+    uses_trees = plan.uses_trees  # else no lights, no trees: the integrator draws its own (the path tracer)
+    if uses_trees:
+        phase("lights")
     t1, c1 = time.perf_counter(), compile_seconds()
-    light_sets = plan.lights(scene, caster, envmap)
+    light_sets = plan.lights(scene, caster, envmap) if uses_trees else {}
     c_pre = compile_seconds() - c0
     t_pre = time.perf_counter() - t0 - c_pre
-    t_lights = time.perf_counter() - t1 - (compile_seconds() - c1)
+    t_lights = time.perf_counter() - t1 - (compile_seconds() - c1) if uses_trees else 0.0
 
     t0, c0 = time.perf_counter(), compile_seconds()
-    phase("trees")
-    trees = plan.trees(light_sets)
+    if uses_trees:
+        phase("trees")
+    trees = plan.trees(light_sets) if uses_trees else None
     c_build = compile_seconds() - c0
-    t_build = time.perf_counter() - t0 - c_build
-    used = tree_meta(trees)
+    t_build = time.perf_counter() - t0 - c_build if uses_trees else 0.0
     phase("render")
 
     # The wait for numba (the child compiling the render kernel, then loading it) is reported on its own.
@@ -192,6 +204,7 @@ def _run(cfg, plan, source, reference: bool, progress: bool, warmup: list, runne
     passes = render(cfg, plan, scene, caster, envmap, desc=f"{cfg.name}: lightcuts", progress=progress,
                     lights=light_sets, trees=trees, before_render=finish)
     result = passes.result0
+    used = tree_meta(trees) if uses_trees else sampler_meta(result.light_sampler)
     t_render = passes.render_seconds
     t_jit = wait[0] + passes.load_seconds
     rows = result.image.shape[0]
@@ -258,6 +271,15 @@ def _run(cfg, plan, source, reference: bool, progress: bool, warmup: list, runne
     if runner is not None:
         report["cluster"] = runner.record()
     return Render(cfg, passes.image, passes.cut_size, report, ref_image)
+
+
+def sampler_meta(light_sampler: dict | None) -> dict:
+    """report.json's ``builder``, ``metric`` and ``c`` of a render without the config's light trees:
+    the builder and metric of the integrator's own ``light_sampler`` record where it names them (the
+    path tracer's tree over the emitting triangles, whose ``c`` is in that record), else None; ``c``
+    (per light type of the config's trees) empty."""
+    record = light_sampler or {}
+    return {"builder": record.get("builder"), "metric": record.get("metric"), "c": {}}
 
 
 def clamping_record(clamp, passes, enabled: bool) -> dict:

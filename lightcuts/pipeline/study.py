@@ -24,7 +24,6 @@ lights or trees are made are taken off (:func:`lightcuts.pipeline.warmup.compile
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -258,18 +257,11 @@ def _tracer_ladder(row, shared, counts, budget, point) -> np.ndarray:
 def _pass(row, shared, cfg, seed: int, load: bool, progress: bool):
     """One render of ``cfg`` (a pass or a ladder point), its lights and trees made first where the
     row uses them: (RenderResult, {"lights_seconds", "build_seconds", "render_seconds"})."""
+    from lightcuts.pipeline.passes import pass_lights
     from lightcuts.pipeline.timing import render_timed
-    from lightcuts.pipeline.warmup import compile_seconds
 
-    lights, trees, t_lights, t_build = {}, None, 0.0, 0.0
     caster = shared.caster(row.plan)
-    if row.uses_trees:
-        t0, c0 = time.perf_counter(), compile_seconds()
-        lights = row.plan.lights(shared.scene, caster, shared.envmap, seed=seed)
-        t_lights = time.perf_counter() - t0 - (compile_seconds() - c0)
-        t0, c0 = time.perf_counter(), compile_seconds()
-        trees = row.plan.trees(lights, seed=seed)
-        t_build = time.perf_counter() - t0 - (compile_seconds() - c0)
+    lights, trees, t_lights, t_build = pass_lights(row.plan, shared.scene, caster, shared.envmap, seed)
     result, t_render, _ = render_timed(cfg, shared.scene, caster, lights, trees, shared.envmap,
                                        f"{cfg.name}: {row.label}", not progress, row.plan.integrator, load=load)
     return result, {"lights_seconds": t_lights, "build_seconds": t_build, "render_seconds": t_render}

@@ -206,15 +206,6 @@ def _flag(value, where: str, key: str) -> bool:
     raise LightcutsError(f"{where}: {key} {value!r}: expected true or false")
 
 
-def uses_trees(cfg, resolved) -> bool:
-    """Whether the integrator ``resolved`` (a Resolved ``render.integrator``) of ``cfg`` renders from
-    lights and light trees: the integrator object's ``uses_trees`` where it has one (an integrator
-    whose use of trees depends on its parameters says so there), else its entry's ``forest`` trait."""
-    from lightcuts.integrators.registry import make_integrator
-
-    return bool(getattr(make_integrator(cfg, resolved), "uses_trees", resolved.trait("forest", False)))
-
-
 def max_samples(cfg, ladder: str) -> int:
     """The largest count of the ladder ``ladder`` that the config's limits allow: MAX_PASSES passes
     or MAX_SPP samples per pixel (x continuation_rays with compensation), and the eye rays of the
@@ -265,7 +256,7 @@ def resolve_rows(config, overrides, given: list[tuple[str, dict]], builders=None
 def _resolve(config, overrides, base, row, where, default_builders, load_config, names) -> list[StudyRow]:
     from lightcuts.integrators.registry import INTEGRATORS
     from lightcuts.integrators.references import make_reference
-    from lightcuts.pipeline.plan import plan_run
+    from lightcuts.pipeline.plan import plan_run, uses_trees
     from lightcuts.trees.spec import config_tree, tree_spec
 
     if "integrator" in row and "tracer" in row:

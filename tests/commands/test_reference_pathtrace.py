@@ -94,6 +94,26 @@ def test_the_path_integrator_renders_the_reference_commands_path_image(tmp_path)
     assert 1 <= r["cut_size_mean"] <= 64 and r["shadow_rays_per_pixel"] > 0
 
 
+def test_a_path_run_against_the_path_tracer_makes_no_lights_or_trees(tmp_path, monkeypatch):
+    """``lightcuts reference`` of a run whose integrator is the path tracer renders lightcuts' side
+    without the config's lights and trees (cornell's 100,000 VPLs): none made, none reported, none timed."""
+    from lightcuts.pipeline.plan import Plan
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("made the config's lights or trees")
+
+    monkeypatch.setattr(Plan, "lights", refuse)
+    monkeypatch.setattr(Plan, "trees", refuse)
+    out = tmp_path / "ref"
+    assert _cli(["reference", ROOT / "configs/cornell.yaml", "--renderer", "lightcuts", "--spp", 1, "--out", out,
+                 "--no-progress", "--set", "camera.resolution=[12,12]", "--set", "render.passes=2",
+                 "--set", "render.integrator={type: path, max_depth: 4}"]) == 0
+    lc = json.loads((out / "report.json").read_text())["lightcuts"]
+    assert lc["lights"] == {} and lc["lights_indirect"] == 0
+    assert lc["image_seconds_parts"]["lights"] == lc["image_seconds_parts"]["trees"] == 0.0
+    assert lc["image_seconds"] == lc["image_seconds_parts"]["passes"] > 0
+
+
 @pytest.mark.parametrize("config, argv, message", [
     ("sun-env.yaml", [], "--renderer lightcuts: its path tracer renders emitting triangles"),
     ("cornell.yaml", ["--integrator", "direct"], "--integrator direct needs --renderer mitsuba"),

@@ -133,6 +133,9 @@ def test_tiles_give_the_local_bytes_whatever_their_size(cluster, name):
             local(name).report["clamping"]["clamped_energy_fraction"], rel=1e-7)  # from the tiles' means
         sampler = {k: v for k, v in r.report.get("light_sampler", {}).items() if k != "build_seconds"}
         assert sampler == {k: v for k, v in local(name).report.get("light_sampler", {}).items() if k != "build_seconds"}
+        if name.startswith("cornell-path"):  # no lights or trees, for pass 0 nor for pass 1's task
+            assert r.report["lights"] == {} and len(r.report["passes"]) == 2
+            assert all(p["lights_seconds"] == p["build_seconds"] == 0.0 for p in r.report["passes"])
 
 
 @SPAWNS
