@@ -178,7 +178,7 @@ def lightcut(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, e
     # packet_set_ray for a Literal[int](0) argument, a specialisation nothing calls.
     n_slots = np.int64(0)
     size = np.int64(0)
-    rays = 0
+    rays = np.int64(0)  # int64 from the start: a literal 0 would compile stochastic_estimate twice
     t0 = 0.0
     t1 = 0.0
     t2 = 0.0
@@ -333,7 +333,7 @@ def draw_light(k, node_b, node_bi, key, slot):
     the node's luminance). Random numbers from (key, slot, depth)."""
     p = 1.0
     c = k
-    level = 0
+    level = np.int64(0)  # int64, not a literal: _u01 compiles once
     while node_bi[c, NB_LEFT] >= 0:
         left = np.int64(node_bi[c, NB_LEFT])
         wl = luminance(np.float64(node_b[left, NB_I]), np.float64(node_b[left, NB_I + 1]),
