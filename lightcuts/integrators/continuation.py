@@ -55,7 +55,7 @@ def path_key(seed, pixel, sample):
     return mix64(h ^ np.uint64(sample)) | np.uint64(1)  # never 0: 0 means fixed representatives
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")  # kernel_api's flags
 def continuation(key, x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, exponent, l1,
                  face_normal, albedo, tex, specular, exponents, emission, node_b, node_bi, roots, light_f, eps, max_cut,
                  clamp_d2, ray_offset, visibility, cdata, buf, width, pk, heap, slot_node, slot_mgv, slot_ratio,

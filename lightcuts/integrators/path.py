@@ -67,7 +67,7 @@ def _u(key, vertex, dim):
     return np.float64(h >> np.uint64(11)) * (1.0 / 9007199254740992.0)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")  # kernel_api's flags
 def _pixel(cdata, buf, cam, seed, spp, sx, sy, px, py, width, face_normal, albedo, tex, specular, exponent, emission,
            env_pixels, env_rotation, env_scale, em_tri, em_cdf, em_p0, em_e1, em_e2, em_prob, tri_light, face_area,
            tree, tree_mode, offset, max_depth):
