@@ -1,6 +1,6 @@
 """Seconds numba spends compiling each kernel in one cold run of a command, and how often it compiles each.
 
-    python tools/compile_times.py [--top 15] [--json FILE] -- render configs/cornell.yaml --no-progress --out /tmp/r
+    python tools/compile_times.py [--top 15] [--json FILE] [--numba] -- render configs/cornell.yaml --no-progress --out /tmp/r
 
 Runs the lightcuts CLI in this process on an empty ``NUMBA_CACHE_DIR`` (a fresh temporary folder,
 unless the environment sets one) with the render kernel's warm-up child switched off, so that every compile
@@ -11,13 +11,15 @@ wall time.
 
 Then the specialisations (one ``numba:compile`` event each: numba compiles a function again for
 every new tuple of argument types): how many lightcuts functions and specialisations, how many of
-numba's own overload implementations (``np.empty`` for each dtype and rank, ...), and for every
-lightcuts function compiled more than once the argument positions whose types differ, e.g.
-``integrators.cut.stochastic_estimate: arg 9 Literal[int](0) | int64``, or, when the types are the
-same, the compile flags of the callers that differ (numba builds an ``@overload``'s implementation
-once per caller's flags: ``release_gil``, ``error_model``, ...). ``--json FILE`` writes these figures
-(``functions``, ``specialisations``, ``numba_specialisations``, ``compile_cpu_s``, ``duplicates``:
-name -> {arg position or flag: [types or values]}).
+numba's own overload implementations (``np.empty`` for each dtype and rank, ...; ``--numba`` lists
+them too), the seconds the lightcuts functions' repeated compiles took (all but each one's longest),
+and for every lightcuts function compiled more than once the argument positions whose types differ,
+e.g. ``integrators.cut.stochastic_estimate x2: arg 32 Literal[int](0) | int64``, or, when the types
+are the same, the compile flags of the callers that differ (numba builds an ``@overload``'s
+implementation once per set of its caller's flags: ``release_gil``, ``error_model``, ...).
+``--json FILE`` writes these figures (``functions``, ``specialisations``, ``numba_functions``,
+``numba_specialisations``, ``compile_cpu_s``, ``repeat_cpu_s``, ``wall_s``, ``duplicates``: name ->
+{"arg i" or "caller's flag": [types or values]}).
 """
 
 from __future__ import annotations
@@ -64,6 +66,7 @@ def main() -> None:
 
     stack: list[list] = []
     excl: dict[str, float] = {}
+    each: dict[str, list[float]] = {}  # per function: the exclusive seconds of each of its compiles
     incl: dict[str, float] = {}
     compiles: dict[str, list[tuple[tuple, dict]]] = {}  # per function: (argument types, caller's flags)
     mine: set[str] = set()  # lightcuts' own functions; the others are numba's overload implementations
@@ -82,6 +85,7 @@ def main() -> None:
             key, t0, child = stack.pop()
             dt = time.thread_time() - t0
             excl[key] = excl.get(key, 0.0) + dt - child
+            each.setdefault(key, []).append(dt - child)
             incl[key] = incl.get(key, 0.0) + dt
             if stack:
                 stack[-1][2] += dt
@@ -109,8 +113,11 @@ def main() -> None:
     n_mine = sum(len(compiles[k]) for k in mine)
     n_theirs = sum(len(v) for k, v in compiles.items() if k not in mine)
     theirs = len(compiles) - len(mine)
+    # what compiling each lightcuts function once would save, at least: all its compiles but the longest
+    repeat = sum(sum(each[k]) - max(each[k]) for k in mine if len(each[k]) > 1)
     print(f"lightcuts: {len(mine)} functions, {n_mine} specialisations; "
-          f"numba's own: {theirs} functions, {n_theirs} specialisations", file=sys.stderr)
+          f"numba's own: {theirs} functions, {n_theirs} specialisations; "
+          f"{repeat:.2f} s compiling lightcuts functions again", file=sys.stderr)
     for k in sorted(dups):
         diff = "; ".join(f"{i} {' | '.join(t)}" for i, t in dups[k].items()) or "same types and flags"
         print(f"  {k} x{len(compiles[k])}: {diff}", file=sys.stderr)
@@ -118,7 +125,7 @@ def main() -> None:
         with open(a.json, "w") as f:
             json.dump({"functions": len(mine), "specialisations": n_mine,
                        "numba_functions": theirs, "numba_specialisations": n_theirs,
-                       "compile_cpu_s": round(total, 2), "wall_s": round(wall, 2),
+                       "compile_cpu_s": round(total, 2), "repeat_cpu_s": round(repeat, 2), "wall_s": round(wall, 2),
                        "duplicates": {k: d for k, d in dups.items() if k in mine}},
                       f, indent=1)
 
