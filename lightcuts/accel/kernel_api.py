@@ -23,6 +23,10 @@ and direction d in world units, t in units of |d|):
     to -inf; a caster without packets loops over the lanes (``packet_get_ray``, ``mark_lane_occluded``).
 ``new_scratch(data) -> array``
     the scratch the calls above receive, one per thread and chunk of rays (never one per ray).
+
+Every kernel that calls one of these four is compiled with the same flags, ``nogil=True,
+error_model="numpy"``: numba builds an overload's implementation once per set of its caller's
+compile flags, so a caller with other flags compiles the call again.
 """
 
 from __future__ import annotations

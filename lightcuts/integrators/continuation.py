@@ -36,6 +36,9 @@ MAX_VERTICES = 32
 #: The first vertex on which Russian roulette decides (1 = the first one after the receiver).
 RR_START = 2
 _STREAM = np.uint64(0x434F4E54)  # "CONT": the continuation's stream, apart from the eye rays'
+# The random numbers of a vertex (_u01's dim): the BRDF sample's three, the roulette's. int64, not
+# literal ints, so that _u01 compiles once rather than once per constant.
+_U_BRDF1, _U_BRDF2, _U_BRDF3, _U_RR = np.int64(0), np.int64(1), np.int64(2), np.int64(3)
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
@@ -52,7 +55,7 @@ def path_key(seed, pixel, sample):
     return mix64(h ^ np.uint64(sample)) | np.uint64(1)  # never 0: 0 means fixed representatives
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")  # kernel_api's flags
 def continuation(key, x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, exponent, l1,
                  face_normal, albedo, tex, specular, exponents, emission, node_b, node_bi, roots, light_f, eps, max_cut,
                  clamp_d2, ray_offset, visibility, cdata, buf, width, pk, heap, slot_node, slot_mgv, slot_ratio,
@@ -76,7 +79,7 @@ def continuation(key, x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs
         if max(wd0, wd1, wd2) + max(ws0, ws1, ws2) <= 0.0:
             break
         w0, w1, w2, t0, t1, t2, _, ok = sample_brdf(n0, n1, n2, r0, r1, r2, wd0, wd1, wd2, ws0, ws1, ws2, e,
-                                                 _u01(key, v, 0), _u01(key, v, 1), _u01(key, v, 2))
+                                                 _u01(key, v, _U_BRDF1), _u01(key, v, _U_BRDF2), _u01(key, v, _U_BRDF3))
         if not ok:
             break
         b0 *= t0
@@ -84,7 +87,7 @@ def continuation(key, x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs
         b2 *= t2
         if v >= RR_START:
             q = min(1.0, max(b0, b1, b2))
-            if q <= 0.0 or _u01(key, v, 3) >= q:
+            if q <= 0.0 or _u01(key, v, _U_RR) >= q:
                 break
             b0 /= q
             b1 /= q

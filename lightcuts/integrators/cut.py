@@ -75,7 +75,7 @@ def _light_mg(typ, p0, p1, p2, nl0, nl1, nl2, c2, x0, x1, x2, n0, n1, n2, r0, r1
     return m0 * g, m1 * g, m2 * g, ratio, True, o0, o1, o2, d0, d1, d2, tfar
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")  # kernel_api's flags
 def light_mgv(j, light_f, x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, exponent,
               clamp_d2, ray_offset, visibility, cdata, buf):
     """``M G V`` per RGB channel of light j at the receiver x, with one shadow ray when M G > 0.
@@ -133,7 +133,7 @@ def node_bound(k, node_b, node_bi, x0, x1, x2, n0, n1, n2, r0, r1, r2, fr, rd0, 
 
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")  # kernel_api's flags
 def _flush(cdata, buf, width, pk, lanes, lane_slot, slot_node, slot_mgv, slot_ratio, node_b,
            t0, t1, t2):
     """Cast the waiting shadow rays (lanes 0..lanes-1 of the packet pk) and zero the estimate of
@@ -178,7 +178,7 @@ def lightcut(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, e
     # packet_set_ray for a Literal[int](0) argument, a specialisation nothing calls.
     n_slots = np.int64(0)
     size = np.int64(0)
-    rays = 0
+    rays = np.int64(0)  # int64 from the start: a literal 0 would compile stochastic_estimate twice
     t0 = 0.0
     t1 = 0.0
     t2 = 0.0
@@ -333,7 +333,7 @@ def draw_light(k, node_b, node_bi, key, slot):
     the node's luminance). Random numbers from (key, slot, depth)."""
     p = 1.0
     c = k
-    level = 0
+    level = np.int64(0)  # int64, not a literal: _u01 compiles once
     while node_bi[c, NB_LEFT] >= 0:
         left = np.int64(node_bi[c, NB_LEFT])
         wl = luminance(np.float64(node_b[left, NB_I]), np.float64(node_b[left, NB_I + 1]),
@@ -353,7 +353,7 @@ def draw_light(k, node_b, node_bi, key, slot):
     return c, p
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")  # kernel_api's flags
 def _cast_draws(cdata, buf, width, pk, lanes, lane_slot, slot_mgv):
     """Cast the draws' waiting shadow rays (lanes 0..lanes-1 of pk) and zero the estimate of each
     slot whose ray is occluded."""

@@ -30,6 +30,7 @@ from lightcuts.accel.base import KernelCaster, kernel_caster_of
 from lightcuts.errors import LightcutsError
 from lightcuts.lights.lightset import LUMINANCE
 from lightcuts.parallel import on_counter
+from lightcuts.scene.scene import kernel_array
 from lightcuts.integrators.camera import camera_params, check_crop, strata
 
 #: Shadow-ray origin offset (and gap before a light), as a fraction of the scene's size or its
@@ -132,13 +133,6 @@ def band_pixel(i, cols, x0, y0, pixels):
     if pixels.shape[0] > 0:
         return row, col, pixels[i, 0], pixels[i, 1]
     return row, col, x0 + col, y0 + row
-
-
-def kernel_array(a, dtype) -> np.ndarray:
-    """C-contiguous, writeable ``dtype`` array: a read-only input (a broadcast view) would make numba
-    compile a second kernel specialisation."""
-    a = np.ascontiguousarray(a, dtype)
-    return a if a.flags.writeable else a.copy()
 
 
 def shadow_ray_offset(scene) -> float:

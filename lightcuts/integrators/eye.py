@@ -20,7 +20,7 @@ from lightcuts.accel.kernel_api import intersect
 from lightcuts.lights.environment import envmap_radiance
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")  # kernel_api's flags
 def eye_hit(cdata, buf, o0, o1, o2, d0, d1, d2, face_normal, emission, env_pixels, env_rotation, env_scale):
     """Cast the eye ray from (o0, o1, o2) along the unit (d0, d1, d2): ``(t, prim, r, g, b)``.
 

@@ -55,13 +55,19 @@ _STREAM = np.uint64(0x50415448)  # "PATH"
 CHUNK = 16
 
 
+# The random numbers of a path vertex (_u's dim): the light sample's three (the light, the point on
+# it), the BRDF sample's three, the roulette's. int64, not literal ints, so that _u compiles once.
+_U_LIGHT, _U_TRI1, _U_TRI2 = np.int64(0), np.int64(1), np.int64(2)
+_U_BRDF1, _U_BRDF2, _U_BRDF3, _U_RR = np.int64(3), np.int64(4), np.int64(5), np.int64(6)
+
+
 @njit(cache=True, error_model="numpy", forceinline=True)
 def _u(key, vertex, dim):
     h = mix64(key ^ mix64(np.uint64(vertex) * np.uint64(8) + np.uint64(dim)))
     return np.float64(h >> np.uint64(11)) * (1.0 / 9007199254740992.0)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")  # kernel_api's flags
 def _pixel(cdata, buf, cam, seed, spp, sx, sy, px, py, width, face_normal, albedo, tex, specular, exponent, emission,
            env_pixels, env_rotation, env_scale, em_tri, em_cdf, em_p0, em_e1, em_e2, em_prob, tri_light, face_area,
            tree, tree_mode, offset, max_depth):
@@ -105,12 +111,12 @@ def _pixel(cdata, buf, cam, seed, spp, sx, sy, px, py, width, face_normal, albed
             # next-event estimation: an emitter triangle (light k) with probability pk, a uniform point on it
             k, pk = -1, 0.0
             if tree_mode:
-                k, pk = sample_light(rec, axis, child, roots, root_type, s0, s1, s2, n0, n1, n2, _u(key, v, 0))
+                k, pk = sample_light(rec, axis, child, roots, root_type, s0, s1, s2, n0, n1, n2, _u(key, v, _U_LIGHT))
             elif n_em > 0:
-                k = min(np.searchsorted(em_cdf, _u(key, v, 0) * total, side="right"), n_em - 1)
+                k = min(np.searchsorted(em_cdf, _u(key, v, _U_LIGHT) * total, side="right"), n_em - 1)
                 pk = em_prob[k]
             if k >= 0:
-                u1, u2 = _u(key, v, 1), _u(key, v, 2)
+                u1, u2 = _u(key, v, _U_TRI1), _u(key, v, _U_TRI2)
                 if u1 + u2 > 1.0:
                     u1, u2 = 1.0 - u1, 1.0 - u2
                 q = em_tri[k]
@@ -137,8 +143,9 @@ def _pixel(cdata, buf, cam, seed, spp, sx, sy, px, py, width, face_normal, albed
             if last:
                 break
             # the next direction, from the BRDF
-            w0, w1, w2, t0, t1, t2, pdf_prev, ok = sample_brdf(n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1,
-                                                               rs2, e, _u(key, v, 3), _u(key, v, 4), _u(key, v, 5))
+            w0, w1, w2, t0, t1, t2, pdf_prev, ok = sample_brdf(
+                n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, e,
+                _u(key, v, _U_BRDF1), _u(key, v, _U_BRDF2), _u(key, v, _U_BRDF3))
             if not ok:
                 break
             b0 *= t0
@@ -146,7 +153,7 @@ def _pixel(cdata, buf, cam, seed, spp, sx, sy, px, py, width, face_normal, albed
             b2 *= t2
             if v >= 3:
                 rr = min(1.0, max(b0, b1, b2))
-                if _u(key, v, 6) >= rr:
+                if _u(key, v, _U_RR) >= rr:
                     break
                 b0 /= rr
                 b1 /= rr

@@ -34,8 +34,9 @@ from lightcuts.integrators.importance import importance, node_type, sample_below
 
 # Columns of an emitting triangle's row (tri_geo, (T, 9) float64): a corner, the two edges from it.
 TG_P0, TG_E1, TG_E2, TG_WIDTH = 0, 3, 6, 9
-# The random numbers of a cut slot (lightcuts.integrators.cut._u01's level): the walk, the point on a triangle.
-_U_WALK, _U_TRI1, _U_TRI2 = 0, 1, 2
+# The random numbers of a cut slot (lightcuts.integrators.cut._u01's level): the walk, the point on a
+# triangle. int64 like draw_light's levels, not literal ints, so that _u01 compiles once.
+_U_WALK, _U_TRI1, _U_TRI2 = np.int64(0), np.int64(1), np.int64(2)
 
 
 @njit(cache=True, error_model="numpy")

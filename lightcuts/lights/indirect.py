@@ -209,7 +209,7 @@ def _scatter_wave(key, bounce, path, org, dirs, pw, thit, prim, face_normal, fac
             pw[i, 0], pw[i, 1], pw[i, 2] = res[13], res[14], res[15]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")  # kernel_api's flags
 def _trace_fused(cdata, key, path0, n, cdf, p0, e1, e2, normal, power, eps, face_normal,
                  face_p0, albedo, tex, specular, exponent, emitter, max_bounces, rr_start, glossy, slots, counts, vpos,
                  vnrm, vint, tasks):

@@ -61,6 +61,14 @@ class Camera:
         return cls(a[0:3], a[3:6], a[6:9], a[9], int(a[10]), int(a[11]))
 
 
+def kernel_array(a, dtype) -> np.ndarray:
+    """``a`` as a C-contiguous, writeable ``dtype`` array, copied when it is a read-only view (a
+    broadcast material, a cached mesh): numba compiles a kernel again for a read-only array, so the
+    arrays kernels receive (a scene's, an environment map's) are all writeable."""
+    a = np.ascontiguousarray(a, dtype)
+    return a if a.flags.writeable else a.copy()
+
+
 @dataclass
 class Scene:
     """Triangle meshes with per-triangle material.
@@ -94,19 +102,19 @@ class Scene:
     _cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     def __post_init__(self):
-        self.vertices = np.ascontiguousarray(self.vertices, np.float64).reshape(-1, 3)
-        self.faces = np.ascontiguousarray(self.faces, np.int32).reshape(-1, 3)
+        self.vertices = kernel_array(np.reshape(self.vertices, (-1, 3)), np.float64)
+        self.faces = kernel_array(np.reshape(self.faces, (-1, 3)), np.int32)
         nf = len(self.faces)
-        self.albedo = np.ascontiguousarray(np.broadcast_to(self.albedo, (nf, 3)), np.float64)
-        self.specular = np.ascontiguousarray(np.broadcast_to(self.specular, (nf, 3)), np.float64)
-        self.exponent = np.ascontiguousarray(np.broadcast_to(self.exponent, (nf,)), np.float64)
-        self.emission = np.ascontiguousarray(np.broadcast_to(self.emission, (nf, 3)), np.float64)
+        self.albedo = kernel_array(np.broadcast_to(self.albedo, (nf, 3)), np.float64)
+        self.specular = kernel_array(np.broadcast_to(self.specular, (nf, 3)), np.float64)
+        self.exponent = kernel_array(np.broadcast_to(self.exponent, (nf,)), np.float64)
+        self.emission = kernel_array(np.broadcast_to(self.emission, (nf, 3)), np.float64)
         if self.texture is None or self.textures is None or len(self.textures) == 0 \
                 or not np.any(np.asarray(self.texture) >= 0):
             self.uv, self.texture, self.textures = None, None, None
         else:
-            self.texture = np.ascontiguousarray(self.texture, np.int32).reshape(nf)
-            self.uv = np.ascontiguousarray(self.uv, np.float64).reshape(nf, 3, 2)
+            self.texture = kernel_array(np.reshape(self.texture, nf), np.int32)
+            self.uv = kernel_array(np.reshape(self.uv, (nf, 3, 2)), np.float64)
             if self.texture.max() >= len(self.textures):
                 raise ValueError(f"texture ids up to {self.texture.max()}, but {len(self.textures)} textures")
 
