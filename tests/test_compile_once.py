@@ -57,3 +57,27 @@ def test_light_tracing_and_the_render_kernel_compile_each_function_once(tmp_path
     twice = {name: sigs for name, sigs in compiles.items() if len(sigs) > 1}
     assert twice == {}, "compiled more than once (argument types per compile):\n" + "\n".join(
         f"{name}:\n  " + "\n  ".join(sigs) for name, sigs in twice.items())
+
+
+def test_every_kernel_calling_the_caster_shares_one_set_of_compile_flags():
+    """numba builds an ``@overload``'s implementation once per set of its callers' compile flags, so
+    every kernel that calls the caster's intersect, occluded, packet_occluded or new_scratch is
+    compiled with ``nogil=True, error_model="numpy"`` (lightcuts.accel.kernel_api): checked on the
+    source of every module, including the integrators no cold-run test above compiles."""
+    import ast
+
+    names = {"intersect", "occluded", "packet_occluded", "new_scratch"}
+    wrong = []
+    for path in sorted((ROOT / "lightcuts").rglob("*.py")):
+        if path.relative_to(ROOT / "lightcuts").parts[0] == "accel":
+            continue  # the casters' own implementations
+        for f in ast.walk(ast.parse(path.read_text())):
+            if not isinstance(f, ast.FunctionDef):
+                continue
+            calls = {n.func.id for n in ast.walk(f) if isinstance(n, ast.Call) and isinstance(n.func, ast.Name)}
+            if calls & names and not any("njit" in ast.unparse(d) for d in f.decorator_list):
+                continue  # Python code calling the caster's Python API
+            flags = " ".join(ast.unparse(d) for d in f.decorator_list)
+            if calls & names and not ("nogil=True" in flags and "error_model='numpy'" in flags):
+                wrong.append(f"{path.relative_to(ROOT)}:{f.lineno} {f.name}: {flags}")
+    assert wrong == [], "\n".join(wrong)

@@ -36,7 +36,7 @@ GC_STATE, GC_PAIRS, GC_WIDTH = 0, 1, 1 + PROBES
 SK_G, SK_L, SK_REP, SK_COL, SK_DEPTH, SK_FORCE, SK_WIDTH = 0, 1, 2, 3, 4, 5, 6
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def check_gather_nodes(gp, gn, gk, gidx, greps, n, light_f, clamp_d2, ray_offset, visibility, cdata, buf, heap, size,
                        slot_k, slot_mgv, slot_vis, gcheck):
     """Check the inner gather nodes of the cut not checked yet (module docstring) and mark the

@@ -83,7 +83,7 @@ def refine_gather(gn, gk, g, node_b, node_bi, k):
     return np.sqrt(gsize) + gn[g, GN_ANG] * np.sqrt(dist2) > np.sqrt(lsize)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _flush(cdata, buf, width, pk, lanes, lane_slot, gn, slot_k, slot_mgv, slot_ratio, slot_vis, node_b, t0, t1, t2):
     """Cast the waiting shadow rays (lanes 0..lanes-1 of the packet pk, lane r for the pair in slot
     lane_slot[r]) and zero the estimate of each pair whose ray is occluded. Returns the running
