@@ -162,6 +162,10 @@ def run_scaling(args) -> list[dict]:
     for spec in specs:
         spec.check_size(max(sizes), "--builders")
     plan = plan_run(cfg, render=render, tree=specs[0])
+    if render and not plan.uses_trees:
+        raise LightcutsError(f"render.integrator: integrator {plan.integrator.name!r} does not render from the "
+                             "config's light trees, whose cut and render time --render measures against N; use "
+                             "render.integrator: lightcuts (or another integrator that renders through light trees)")
     out = check_output_dir(Path(args.out) if args.out else Path("renders") / f"{cfg.name}-scaling",
                            "--out" if args.out else "name")
     point_cfgs = [load_config(args.config, base + [f"lights.indirect.count={n}"]) for n in sizes]

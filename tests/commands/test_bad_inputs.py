@@ -226,6 +226,8 @@ CASES = [
     ("tree-no-input", ["tree", "--out", "t.npz"], None, None),
     ("scaling-bad-sizes", ["scaling", "run.yaml", "--sizes", "ten"], None, None),
     ("scaling-repeats-0", ["scaling", "run.yaml", "--sizes", "100", "--repeats", "0"], None, None),
+    ("scaling-render-path", ["scaling", "run.yaml", "--sizes", "100", "--render", "--set",
+                             "render.integrator=path"], None, None),
     # light files
     ("lights-object-array", None, None, dict(position=np.array([[1, 2, 3]] * 8, object))),
     ("lights-npy-renamed", None, None, "npy"),
