@@ -25,7 +25,6 @@ from lightcuts.registry import Param, declare
 from lightcuts.integrators import MAX_CUT
 from lightcuts.integrators.camera import CAM_WIDTH
 from lightcuts.integrators.driver import BAND_PIXELS, Band, RenderResult, band_pixel, warm
-from lightcuts.integrators.lightcut import CHUNK
 from lightcuts.integrators.multidim.gather import GP_WIDTH, pixel_gather
 from lightcuts.integrators.multidim.gather_check import GC_WIDTH, SK_WIDTH
 from lightcuts.integrators.multidim.gather_tree import GK_WIDTH, GN_WIDTH, build_gather_tree, gather_representatives
@@ -34,6 +33,10 @@ from lightcuts.integrators.registry import INTEGRATORS, CutIntegrator, check_non
 
 #: Light representatives per light node (1: the tree's own only): the integrator's default.
 DEFAULT_REPRESENTATIVES = 4
+#: Gather points a thread takes at a time (pixels x gather points; at least one pixel): the cost of a
+#: pixel grows with its gather points and varies with its cut, and threads wait for each other at
+#: the end of every band of rows, so tasks stay small.
+TASK_GATHER_POINTS = 128
 #: Gather-representative columns per gather node: the integrator's default (one per point at 16 spp).
 DEFAULT_GATHER_REPRESENTATIVES = 16
 
@@ -41,11 +44,11 @@ DEFAULT_GATHER_REPRESENTATIVES = 16
 @njit(cache=True, nogil=True, error_model="numpy")
 def _render_band(cdata, width, cam, seed, spp, sx, sy, aperture, focus, x0, x1, y0, y1, face_normal, albedo, tex,
                  specular, exponent, emission, node_b, node_bi, roots, light_f, light_i, lreps, g_count, env_pixels,
-                 env_rotation, env_scale, eps, max_cut, clamp_d2, ray_offset, visibility, reference, pixels, out_rgb, out_cut,
-                 out_rays, out_lost, tasks):
+                 env_rotation, env_scale, eps, max_cut, clamp_d2, ray_offset, visibility, reference, chunk, pixels,
+                 out_rgb, out_cut, out_rays, out_lost, tasks):
     """Pixels [x0, x1) x [y0, y1) (or the listed ``pixels``) into the band's rows, as every band
-    kernel (lightcuts.integrators.driver); cdata, width : the caster's data and packet width
-    (lightcuts.accel.base.KernelCaster); out_cut : pairs in the cut per pixel."""
+    kernel (lightcuts.integrators.driver), ``chunk`` pixels a task; cdata, width : the caster's data
+    and packet width (lightcuts.accel.base.KernelCaster); out_cut : pairs in the cut per pixel."""
     cols = x1 - x0
     n = (y1 - y0) * cols
     cap = max(max_cut, roots.shape[0]) + 2
@@ -67,9 +70,9 @@ def _render_band(cdata, width, cam, seed, spp, sx, sy, aperture, focus, x0, x1, 
     image_width = np.int64(cam[CAM_WIDTH])
     while True:
         c = next_task(tasks)
-        if c * CHUNK >= n:
+        if c * chunk >= n:
             break
-        for i in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
+        for i in range(c * chunk, min(n, (c + 1) * chunk)):
             row, col, px, py = band_pixel(i, cols, x0, y0, pixels)
             ng, a0, a1, a2 = pixel_gather(cdata, buf, cam, seed, spp, sx, sy, px, py, aperture, focus, face_normal,
                                           albedo, tex, specular, exponent, emission, env_pixels, env_rotation, env_scale,
@@ -165,10 +168,11 @@ class Multidimensional(CutIntegrator):
         if len(fo.node_f):
             light_representatives(fo.node_f, fo.node_k, self.representatives, f.seed, lreps)
         head = (*f.caster, f.cam, f.seed, spp, f.sx, f.sy, self.aperture, focus)
+        chunk = max(1, TASK_GATHER_POINTS // spp)
         tail = (*f.surfaces, fo.node_b, fo.node_bi, fo.roots, fo.light_f, fo.light_i, lreps,
                 self.gather_representatives, *f.env, self.eps, pair_budget, self.clamp_d2(f.scene, fo), f.ray_offset,
-                self.visibility, self.brute_force)
-        return Band(_render_band, head, tail, max(1, BAND_PIXELS // max(1, f.cols * spp // 4)), CHUNK)
+                self.visibility, self.brute_force, np.int64(chunk))
+        return Band(_render_band, head, tail, max(1, BAND_PIXELS // max(1, f.cols * spp // 4)), chunk)
 
 
 def render_multidimensional(scene, caster, lights: dict, trees: dict | None, camera=None, spp: int = 16,
