@@ -33,7 +33,7 @@ from lightcuts.lights.lightset import LUMINANCE
 from lightcuts.integrators.bounds import DIRECTIONAL, cluster_error_bound_framed, receiver_frames
 from lightcuts.integrators.forest import (LF_INDIRECT, LF_NRM, LF_POS, LF_TYPE, NB_AXIS, NB_COS, NB_FA, NB_HI, NB_I,
                                      NB_LEFT, NB_LO, NB_REP, REP_BITS, REP_MASK)
-from lightcuts.integrators.heap import SLOT_MASK, entry_bound, heap_entry, heap_push, sift_down
+from lightcuts.integrators.heap import SLOT_MASK, entry_bound, heap_entry, heap_push, replace_top
 from lightcuts.integrators.shading import light_geometry, material_term
 
 LUM_R, LUM_G, LUM_B = (float(v) for v in LUMINANCE)
@@ -245,21 +245,8 @@ def lightcut(x0, x1, x2, n0, n1, n2, r0, r1, r2, rd0, rd1, rd2, rs0, rs1, rs2, e
                         exponent, clamp_d2)
         br = node_bound(left + 1, node_b, node_bi, x0, x1, x2, n0, n1, n2, r0, r1, r2, fr, rd0, rd1, rd2, rs0, rs1,
                         rs2, exponent, clamp_d2)
-        # The heap first (it needs the bounds only), then the children's lights and shadow ray. Heap
-        # order: the left child (if it has a bound) takes the top, then the right.
-        if bl > 0.0:
-            sift_down(heap, size, heap_entry(bl, s))
-            if br > 0.0:
-                size = heap_push(heap, size, heap_entry(br, n_slots))
-                heap[size] = 0
-        elif br > 0.0:
-            sift_down(heap, size, heap_entry(br, n_slots))
-        else:  # no child entered the heap: the last entry fills the top
-            size -= 1
-            key = heap[size]
-            heap[size] = 0
-            if size > 0:
-                sift_down(heap, size, key)
+        # The heap first (it needs the bounds only), then the children's lights and shadow ray.
+        size = replace_top(heap, size, bl, s, br, n_slots)
         for side in range(2):
             c = left + side
             # The left child takes the parent's slot, the right child a new one.

@@ -88,3 +88,25 @@ def sift_down(heap, size, key):
         i = child
     heap[i] = key
     return size
+
+
+@njit(cache=True, error_model="numpy", forceinline=True)
+def replace_top(heap, size, bl, left, br, right):
+    """Replace the top entry (a cluster being refined) by its two children's: bound ``bl`` for the
+    slot ``left`` and ``br`` for ``right``, a child with bound 0 left out (its estimate is exact).
+    The left child, if it has a bound, takes the top, then the right is pushed; with neither, the
+    last entry fills the top. Returns the new size; keeps the 0 sentinel after the last entry."""
+    if bl > 0.0:
+        sift_down(heap, size, heap_entry(bl, left))
+        if br > 0.0:
+            size = heap_push(heap, size, heap_entry(br, right))
+            heap[size] = 0
+    elif br > 0.0:
+        sift_down(heap, size, heap_entry(br, right))
+    else:
+        size -= 1
+        key = heap[size]
+        heap[size] = 0
+        if size > 0:
+            sift_down(heap, size, key)
+    return size

@@ -27,7 +27,7 @@ from lightcuts.accel.packets import lane_occluded, packet_set_ray
 from lightcuts.integrators.cut import luminance
 from lightcuts.integrators.bounds import DIRECTIONAL
 from lightcuts.integrators.forest import NB_HI, NB_I, NB_LEFT, NB_LO, NB_REP, NF_I, NK_LEFT, NK_REP, NK_RIGHT, REP_BITS
-from lightcuts.integrators.heap import SLOT_MASK, entry_bound, heap_entry, heap_push, sift_down
+from lightcuts.integrators.heap import SLOT_MASK, entry_bound, heap_entry, heap_push, replace_top
 from lightcuts.integrators.multidim.gather import GP_EXP, GP_NRM, GP_POS, GP_RD, GP_REFL, GP_RS, GP_W
 from lightcuts.integrators.multidim.gather_tree import GK_LEFT, GN_ANG, GN_HI, GN_LO, GN_W
 from lightcuts.integrators.multidim.gather_check import (GC_STATE, SK_COL, SK_DEPTH, SK_FORCE, SK_G, SK_L, SK_REP,
@@ -225,21 +225,8 @@ def product_cut(gp, gn, gk, gidx, greps, groot, node_b, node_bi, roots, light_f,
                     bl = b
                 else:
                     br = b
-            # The heap first (it needs the bounds only): the left child (if it has a bound) takes the
-            # top, then the right.
-            if bl > 0.0:
-                sift_down(heap, size, heap_entry(bl, s))
-                if br > 0.0:
-                    size = heap_push(heap, size, heap_entry(br, n_slots))
-                    heap[size] = 0
-            elif br > 0.0:
-                sift_down(heap, size, heap_entry(br, n_slots))
-            else:  # no child entered the heap: the last entry fills the top
-                size -= 1
-                key = heap[size]
-                heap[size] = 0
-                if size > 0:
-                    sift_down(heap, size, key)
+            # The heap first (it needs the bounds only).
+            size = replace_top(heap, size, bl, s, br, n_slots)
             # s's waiting ray, if any, moves to the child that keeps (g, j).
             for r in range(lanes):
                 if lane_slot[r] == s:
