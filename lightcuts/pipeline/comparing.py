@@ -232,7 +232,10 @@ def compare_run(cfg, plans, labels, pixels, store, *, source: str | None = None,
             i = next((k for k, r in enumerate(results) if r["row"]["label"] == DEFAULT_BUILDER), 0)
             s = shared.get()
             converging = _converging(plans[i], s, mitsuba_passes, progress) if mitsuba_passes else None
-            mitsuba = equal_time_study(cfg, s.scene, s.envmap, results[i], mitsuba_spp, store, converging)
+            from lightcuts.integrators.primary import emitter_mask
+
+            mask = emitter_mask(s.scene, s.caster, cfg.render.crop, s.envmap is not None)
+            mitsuba = equal_time_study(cfg, s.scene, s.envmap, results[i], mitsuba_spp, store, converging, mask)
     finally:
         if shared.warmup is not None:
             finish_warmup(shared.warmup, timeout=0)
