@@ -175,21 +175,23 @@ def _run(cfg, plan, source, reference: bool, progress: bool, warmup: list, runne
         warmup.append(start_render_warmup(plan.integrator.trait("kernels")))
     caster = plan.make_caster(scene)
     envmap = plan.environment()
-    uses_trees = plan.uses_trees  # else no lights, no trees: the integrator draws its own (the path tracer)
+    # Without them (the path tracer draws the scene's emitters itself): no lights, no trees.
+    uses_trees = plan.uses_trees
+    light_sets, trees, t_lights, t_build, c_build = {}, None, 0.0, 0.0, 0.0
     if uses_trees:
         phase("lights")
-    t1, c1 = time.perf_counter(), compile_seconds()
-    light_sets = plan.lights(scene, caster, envmap) if uses_trees else {}
+        t1, c1 = time.perf_counter(), compile_seconds()
+        light_sets = plan.lights(scene, caster, envmap)
+        t_lights = time.perf_counter() - t1 - (compile_seconds() - c1)
     c_pre = compile_seconds() - c0
     t_pre = time.perf_counter() - t0 - c_pre
-    t_lights = time.perf_counter() - t1 - (compile_seconds() - c1) if uses_trees else 0.0
 
-    t0, c0 = time.perf_counter(), compile_seconds()
     if uses_trees:
+        t0, c0 = time.perf_counter(), compile_seconds()
         phase("trees")
-    trees = plan.trees(light_sets) if uses_trees else None
-    c_build = compile_seconds() - c0
-    t_build = time.perf_counter() - t0 - c_build if uses_trees else 0.0
+        trees = plan.trees(light_sets)
+        c_build = compile_seconds() - c0
+        t_build = time.perf_counter() - t0 - c_build
     phase("render")
 
     # The wait for numba (the child compiling the render kernel, then loading it) is reported on its own.
