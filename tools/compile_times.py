@@ -25,7 +25,6 @@ implementation once per set of its caller's flags: ``release_gil``, ``error_mode
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
 import tempfile
@@ -122,12 +121,12 @@ def main() -> None:
         diff = "; ".join(f"{i} {' | '.join(t)}" for i, t in dups[k].items()) or "same types and flags"
         print(f"  {k} x{len(compiles[k])}: {diff}", file=sys.stderr)
     if a.json:
-        with open(a.json, "w") as f:
-            json.dump({"functions": len(mine), "specialisations": n_mine,
-                       "numba_functions": theirs, "numba_specialisations": n_theirs,
-                       "compile_cpu_s": round(total, 2), "repeat_cpu_s": round(repeat, 2), "wall_s": round(wall, 2),
-                       "duplicates": {k: d for k, d in dups.items() if k in mine}},
-                      f, indent=1)
+        from lightcuts.io import save_json  # written whole, then renamed
+
+        save_json(a.json, {"functions": len(mine), "specialisations": n_mine,
+                           "numba_functions": theirs, "numba_specialisations": n_theirs,
+                           "compile_cpu_s": round(total, 2), "repeat_cpu_s": round(repeat, 2),
+                           "wall_s": round(wall, 2), "duplicates": {k: d for k, d in dups.items() if k in mine}})
 
 
 if __name__ == "__main__":
